@@ -30,6 +30,7 @@ from dataset_gen.procedural import (
 PANDA_MAX_OPENING_M = 0.08
 FINGER_CLEARANCE_M = 0.03  # a 0.025 m thick finger plus margin
 SEEDS = (0, 1, BENCHMARK_SEED_BASE + 7)
+BENCHMARK_PARTS_SHA256 = "d753a0d14f41c85024449034cb1a03f11e697c2cd7b500cc1db4220eb5b2b50b"
 
 
 @cache
@@ -189,6 +190,35 @@ def test_ray_check_rejects_thick_solid() -> None:
     thickness, _, _ = _solid_interval(obj, point, body.pose[:3, 1])  # handles lie along x
     assert thickness == pytest.approx(2 * body.size[0], rel=0.02)
     assert thickness > PANDA_MAX_OPENING_M
+
+
+def test_every_benchmark_object_builds() -> None:
+    """All 300 benchmark objects are single watertight solids of the right size (a few seconds);
+    make_procedural_object raises RuntimeError otherwise."""
+    for family, seed in object_specs(300, split="benchmark"):
+        obj = make_procedural_object(family, seed)
+        assert 0.3 <= float(obj.extents.max()) <= 1.2, obj.object_id
+        assert obj.metadata["split"] == "benchmark"
+
+
+def _parts_digest(specs: list[tuple[str, int]]) -> str:
+    text = []
+    for family, seed in specs:
+        for part in build_parts(family, seed):
+            numbers = [*part.size, *part.pose[:3].ravel()]
+            if part.vertices is not None:
+                numbers += list(part.vertices.ravel())
+            text.append(part.kind + " " + " ".join(f"{round(x, 6) + 0.0:.6f}" for x in numbers))
+    return hashlib.sha256("\n".join(text).encode()).hexdigest()
+
+
+def test_benchmark_objects_are_frozen() -> None:
+    """The benchmark is a fixed set of shapes: its parts (rounded to 1e-6 m) must not change.
+
+    If a builder change is intended for train objects only, keep the benchmark's parameters; if
+    the benchmark itself must change, that is a new benchmark version: update this digest."""
+    digest = _parts_digest(object_specs(300, split="benchmark"))
+    assert digest == BENCHMARK_PARTS_SHA256
 
 
 # --------------------------------------------------------------------------------------------
