@@ -153,13 +153,15 @@ def load_library_object(
     if entry is None:
         raise MeshError(f"{folder}: expected object {object_id!r} in the manifest, found no entry")
     files = entry["files"]
-    parts = read_parts(folder / files["parts"]) if "parts" in files else None
+    parts_path = (
+        io.manifest_entry_path(folder, manifest, object_id, "parts") if "parts" in files else None
+    )
     obj = load_object(
-        folder / files["mesh"],
+        io.manifest_entry_path(folder, manifest, object_id, "mesh"),
         object_id=object_id,
         mass=mass if mass is not None else float(entry.get("mass_kg", 6.0)),
         center=False,
-        parts=parts,
+        parts=None if parts_path is None else read_parts(parts_path),
     )
     obj.metadata.update({k: entry[k] for k in ("family", "seed", "split") if k in entry})
     return obj
