@@ -160,10 +160,7 @@ def _objects_make(args: argparse.Namespace) -> int:
     count = args.count if args.count is not None else (300 if args.split == "benchmark" else 20)
     if count <= 0:
         raise MeshError(f"--count: expected a positive number of objects, found {count}")
-    try:
-        specs = procedural.object_specs(count, seed=args.seed, split=args.split)
-    except ValueError as exc:
-        raise MeshError(str(exc)) from None
+    specs = procedural.object_specs(count, seed=args.seed, split=args.split)  # ProceduralError
     with tqdm(total=len(specs), unit="obj", desc="objects", disable=None) as bar:
         manifest = write_procedural_library(
             args.out, specs, mass=args.mass, on_object=lambda _: bar.update()
@@ -176,15 +173,14 @@ def _objects_make(args: argparse.Namespace) -> int:
 
 
 def _objects_show(args: argparse.Namespace) -> int:
-    from dataset_gen.library import library_ids, load_library_object
+    from dataset_gen.library import load_library
     from dataset_gen.render import render_objects
 
-    ids = library_ids(args.folder)[: max(args.limit, 0)]
-    if not ids:
+    objects = load_library(args.folder, limit=max(args.limit, 0))
+    if not objects:
         raise MeshError(f"{args.folder}: expected at least one object in the manifest, found none")
-    items = [(oid, load_library_object(args.folder, oid).mesh) for oid in ids]
-    out = render_objects(items, args.out, columns=args.columns)
-    print(f"wrote {out} ({len(items)} objects)")
+    out = render_objects([(o.object_id, o.mesh) for o in objects], args.out, columns=args.columns)
+    print(f"wrote {out} ({len(objects)} objects)")
     return 0
 
 

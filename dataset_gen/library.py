@@ -132,15 +132,22 @@ def _read_or_new_manifest(out: Path, mass: float) -> dict[str, Any]:
     return io.new_manifest("objects", parameters={"mass_kg": mass, "source": "procedural"})
 
 
-def load_library(folder: str | os.PathLike[str]) -> list[GraspObject]:
-    """All ok objects of a library folder, with their convex parts, in manifest order."""
-    return [load_library_object(folder, oid) for oid in library_ids(folder)]
+def load_library(folder: str | os.PathLike[str], limit: int | None = None) -> list[GraspObject]:
+    """The ok objects of a library folder (the first ``limit`` of them), with their convex parts,
+    in manifest order. The manifest is read once."""
+    folder = Path(folder)
+    manifest = io.read_manifest(folder)
+    ids = _ok_ids(manifest)[:limit]
+    return [_load_entry(folder, manifest, oid, mass=None) for oid in ids]
 
 
 def library_ids(folder: str | os.PathLike[str]) -> list[str]:
     """Ids of the objects listed as ok in ``folder``'s manifest."""
-    entries = io.read_manifest(folder)["entries"]
-    return [oid for oid, entry in entries.items() if entry.get("status") == "ok"]
+    return _ok_ids(io.read_manifest(folder))
+
+
+def _ok_ids(manifest: dict[str, Any]) -> list[str]:
+    return [oid for oid, entry in manifest["entries"].items() if entry.get("status") == "ok"]
 
 
 def load_library_object(
@@ -148,7 +155,12 @@ def load_library_object(
 ) -> GraspObject:
     """Load one object of a library folder (mesh + parts, already in the object frame)."""
     folder = Path(folder)
-    manifest = io.read_manifest(folder)
+    return _load_entry(folder, io.read_manifest(folder), object_id, mass)
+
+
+def _load_entry(
+    folder: Path, manifest: dict[str, Any], object_id: str, mass: float | None
+) -> GraspObject:
     entry = manifest["entries"].get(object_id)
     if entry is None:
         raise MeshError(f"{folder}: expected object {object_id!r} in the manifest, found no entry")
