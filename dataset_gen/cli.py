@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 from dataset_gen.errors import Dg16mError
 
-COMMAND_MODULES: tuple[str, ...] = ("dataset_gen.commands",)
+COMMAND_MODULES: tuple[str, ...] = ("dataset_gen.commands", "dataset_gen.verify_command")
 """Modules that add subcommands, in the order they appear in ``dg16m --help``."""
 
 

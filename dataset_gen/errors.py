@@ -22,3 +22,11 @@ class GraspFileError(Dg16mError, ValueError):
 
 class GripperError(Dg16mError, ValueError):
     """A gripper name or a gripper pose is invalid."""
+
+
+class ForceClosureError(Dg16mError, ValueError):
+    """Force-closure input is malformed (shapes, NaN, zero normals, bad parameters)."""
+
+
+class SolverError(Dg16mError, RuntimeError):
+    """A convex solver ended without a usable solution (a status other than solved)."""

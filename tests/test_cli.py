@@ -14,7 +14,7 @@ from dataset_gen import io
 from dataset_gen.cli import build_parser, main
 from dataset_gen.library import load_library
 
-SUBCOMMANDS = ["objects", "show", "inspect", "grippers"]
+SUBCOMMANDS = ["objects", "show", "inspect", "grippers", "verify"]
 
 
 def _image_is_a_picture(path: Path) -> None:

@@ -1,0 +1,296 @@
+"""Force closure: hand-made physical cases, conventions, rank test, fast vs Clarabel, bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dataset_gen.errors import ForceClosureError, SolverError
+from dataset_gen.force_closure import (
+    SOLVED_CLARABEL,
+    SOLVED_FAST,
+    SOLVED_NONE,
+    axis_gravity_wrenches,
+    contact_frames,
+    evaluate,
+    full_rank,
+    grasp_matrix,
+    grasp_quality,
+    project_cone_ball,
+)
+from dataset_gen.force_closure.synthetic import FAMILIES, family_pairs
+
+METHODS = ["fast", "clarabel"]
+UP = np.array([0.0, 0.0, 60.0])
+
+
+def plank_squeeze() -> tuple[np.ndarray, np.ndarray]:
+    """A 0.6 m plank; each arm squeezes its two side faces (y = +-0.05) near one end."""
+    points = np.array([[[-0.25, 0.05, 0], [-0.25, -0.05, 0], [0.25, 0.05, 0], [0.25, -0.05, 0]]])
+    normals = np.array([[[0, 1, 0], [0, -1, 0], [0, 1, 0], [0, -1, 0]]], dtype=float)
+    return points.astype(float), normals
+
+
+def face_contacts(z: float) -> tuple[np.ndarray, np.ndarray]:
+    """Four fingertips on the horizontal face at height z (outward normal sign(z) * +z)."""
+    xy = [(0.03, 0.03), (-0.03, 0.03), (0.03, -0.03), (-0.03, -0.03)]
+    points = np.array([[[x, y, z] for x, y in xy]])
+    normals = np.tile([0.0, 0.0, np.sign(z)], (1, 4, 1))
+    return points, normals
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("convention", ["physical", "release"])
+def test_plank_squeezed_at_both_ends_holds(method: str, convention: str) -> None:
+    points, normals = plank_squeeze()
+    result = evaluate(points, normals, method=method, convention=convention)
+    assert result.rank_ok[0]
+    assert result.passed[0]
+    assert result.loss[0] <= 1e-5
+    forces = result.forces[0]
+    assert np.allclose(forces.sum(axis=0), UP, atol=1e-4)  # contacts carry the weight
+    assert np.allclose(np.cross(points[0], forces).sum(axis=0), 0.0, atol=1e-4)
+    assert np.all(np.linalg.norm(forces, axis=1) <= 70.0 + 1e-6)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_all_contacts_on_one_side_cannot_hold(method: str) -> None:
+    points, normals = plank_squeeze()
+    points[0, :, 1] = 0.05  # all four on the +y face, spread over it
+    points[0, :, 2] = [0.02, -0.02, 0.02, -0.02]
+    normals[0] = [0.0, 1.0, 0.0]
+    for convention in ("physical", "release"):
+        result = evaluate(points, normals, method=method, convention=convention)
+        assert result.rank_ok[0]
+        assert not result.passed[0]
+        assert result.loss[0] > 1.0
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_forces_push_in_physical_and_pull_in_release(method: str) -> None:
+    bottom_p, bottom_n = face_contacts(-0.05)
+    top_p, top_n = face_contacts(0.05)
+    physical_bottom = evaluate(bottom_p, bottom_n, method=method)
+    release_bottom = evaluate(bottom_p, bottom_n, method=method, convention="release")
+    physical_top = evaluate(top_p, top_n, method=method)
+    release_top = evaluate(top_p, top_n, method=method, convention="release")
+    # Resting on four fingertips holds physically; the release's pulling cones cannot.
+    assert physical_bottom.passed[0]
+    assert not release_bottom.passed[0]
+    assert release_bottom.loss[0] == pytest.approx(60.0, abs=1e-4)
+    # On the top face it is the other way round: the release "lifts" by pulling.
+    assert release_top.passed[0]
+    assert not physical_top.passed[0]
+    assert physical_top.loss[0] == pytest.approx(60.0, abs=1e-4)
+    # Push: force opposes the outward normal; pull: along it.
+    assert np.all(np.einsum("kj,kj->k", physical_bottom.forces[0], bottom_n[0]) < -1.0)
+    assert np.all(np.einsum("kj,kj->k", release_top.forces[0], top_n[0]) > 1.0)
+    assert np.allclose(physical_bottom.forces[0], [0, 0, 15.0], atol=1e-3)
+
+
+def test_plank_forces_push_inward_in_physical_and_pull_in_release() -> None:
+    points, normals = plank_squeeze()
+    for convention, sign in (("physical", -1.0), ("release", 1.0)):
+        forces = evaluate(points, normals, convention=convention, method="clarabel").forces[0]
+        normal_parts = np.einsum("kj,kj->k", forces, normals[0])
+        assert np.all(sign * normal_parts >= -1e-6), (convention, normal_parts)
+        assert np.any(sign * normal_parts > 1.0)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_collinear_contacts_fail_the_rank_test(method: str) -> None:
+    points = np.array([[[-0.2, 0, 0], [-0.1, 0, 0], [0.1, 0, 0], [0.2, 0, 0]]], dtype=float)
+    normals = np.array([[[0, 0, 1], [0, 0, -1], [0, 1, 0], [0, -1, 0]]], dtype=float)
+    result = evaluate(points, normals, method=method)
+    assert not result.rank_ok[0]
+    assert not result.passed[0]
+    assert np.isnan(result.loss[0])
+    assert result.solved_by[0, 0] == SOLVED_NONE
+    assert result.quality[0] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_rank_test_equals_numpy_matrix_rank_on_near_collinear_contacts() -> None:
+    rng = np.random.default_rng(7)
+    points, normals = family_pairs("near_collinear", 3000, rng)
+    expected = np.linalg.matrix_rank(grasp_matrix(points, normals)) == 6
+    assert 0 < expected.sum() < expected.size  # both outcomes occur
+    assert np.array_equal(full_rank(points, normals), expected)
+    fast = evaluate(points, normals, method="fast", loss_rtol=None)
+    assert np.array_equal(fast.rank_ok, expected)
+
+
+def test_grasp_matrix_and_quality() -> None:
+    rng = np.random.default_rng(3)
+    points, normals = family_pairs("box", 50, rng)
+    G = grasp_matrix(points, normals)
+    assert G.shape == (50, 6, 12)
+    R = contact_frames(normals)
+    assert np.allclose(R[..., 2], normals)
+    assert np.allclose(np.swapaxes(R, -1, -2) @ R, np.eye(3), atol=1e-12)
+    expected = np.sqrt(np.linalg.det(G @ np.swapaxes(G, 1, 2)))
+    assert np.allclose(grasp_quality(points), expected, rtol=1e-9)
+    result = evaluate(points, normals, loss_rtol=None)
+    assert np.allclose(result.quality, expected, rtol=1e-9)
+
+
+def test_projection_onto_cone_and_ball() -> None:
+    rng = np.random.default_rng(11)
+    forces = rng.normal(scale=100.0, size=(2000, 3))
+    axes = rng.normal(size=(2000, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    projected = project_cone_ball(forces, axes, 0.4, 70.0)
+    normal = np.einsum("ij,ij->i", projected, axes)
+    tangent = np.linalg.norm(projected - normal[:, None] * axes, axis=1)
+    assert np.all(tangent <= 0.4 * normal + 1e-9)
+    assert np.all(np.linalg.norm(projected, axis=1) <= 70.0 + 1e-9)
+    # A projection is idempotent and no farther than any other feasible point (sampled).
+    assert np.allclose(project_cone_ball(projected, axes, 0.4, 70.0), projected)
+    candidates = project_cone_ball(rng.normal(scale=50.0, size=(2000, 3)), axes, 0.4, 70.0)
+    assert np.all(
+        np.linalg.norm(forces - projected, axis=1)
+        <= np.linalg.norm(forces - candidates, axis=1) + 1e-9
+    )
+
+
+@pytest.mark.parametrize("convention", ["physical", "release"])
+def test_fast_and_clarabel_agree_on_random_pairs(convention: str) -> None:
+    rng = np.random.default_rng(2024)
+    parts = [family_pairs(family, 500, rng) for family in FAMILIES]
+    points = np.concatenate([p for p, _ in parts])
+    normals = np.concatenate([n for _, n in parts])
+    fast = evaluate(points, normals, convention=convention, method="fast")
+    reference = evaluate(points, normals, convention=convention, method="clarabel")
+    assert 0.05 < fast.passed.mean() < 0.95  # a mix of outcomes, not a trivial set
+    assert np.array_equal(fast.rank_ok, reference.rank_ok)
+    assert np.array_equal(fast.passed, reference.passed)
+    assert (fast.solved_by == SOLVED_FAST).mean() > 0.8
+    failing = reference.rank_ok & ~reference.passed
+    # Exact-loss mode: failing losses agree with the interior-point optimum.
+    rel = np.abs(fast.loss[failing] - reference.loss[failing]) / reference.loss[failing]
+    assert np.max(rel) < 2e-3
+    # Verdict-only mode: same verdicts; the loss is an upper bound above a proven lower bound.
+    quick = evaluate(points, normals, convention=convention, method="fast", loss_rtol=None)
+    assert np.array_equal(quick.passed, reference.passed)
+    certified = (quick.solved_by[:, 0] == SOLVED_FAST) & failing
+    assert np.all(quick.loss[certified] >= reference.loss[certified] * (1 - 1e-6))
+    assert np.all(quick.loss_lower[certified, 0] <= reference.loss[certified] * (1 + 1e-6))
+    assert np.all(quick.loss_lower[certified, 0] > 1e-5)
+    assert not quick.loss_converged[certified].any()
+    assert fast.loss_converged[fast.rank_ok].all()
+
+
+def test_passing_forces_are_feasible_and_cancel_gravity() -> None:
+    rng = np.random.default_rng(5)
+    points, normals = family_pairs("sphere", 400, rng)
+    for method in METHODS:
+        result = evaluate(points, normals, method=method)
+        forces = result.forces[result.passed]
+        axes = -normals[result.passed]
+        normal = np.einsum("nkj,nkj->nk", forces, axes)
+        tangent = np.linalg.norm(forces - normal[..., None] * axes, axis=-1)
+        assert np.all(tangent <= 0.4 * normal + 1e-7)
+        assert np.all(np.linalg.norm(forces, axis=-1) <= 70.0 + 1e-7)
+        assert np.allclose(forces.sum(axis=1), UP, atol=2e-5)
+
+
+def test_axis_gravity_robustness_is_stricter() -> None:
+    bottom_p, bottom_n = face_contacts(-0.05)
+    plank_p, plank_n = plank_squeeze()
+    points = np.concatenate([bottom_p, plank_p])
+    normals = np.concatenate([bottom_n, plank_n])
+    for method in METHODS:
+        plain = evaluate(points, normals, method=method)
+        robust = evaluate(points, normals, method=method, wrenches="axis_gravity")
+        assert plain.passed.tolist() == [True, True]
+        # Resting on fingertips cannot resist the weight pulling up; squeezing the plank can
+        # only resist 60 N along its sides' normal (y) up to 70 N, so it holds every direction.
+        assert robust.passed.tolist() == [False, True]
+        assert robust.losses.shape == (2, 6)
+        assert robust.losses[0, 1] == pytest.approx(60.0, abs=1e-4)  # +z pull on resting box
+        assert np.allclose(robust.wrenches, axis_gravity_wrenches())
+        assert robust.contact_forces.shape == (2, 6, 4, 3)
+
+
+def test_results_are_deterministic() -> None:
+    rng = np.random.default_rng(1)
+    points, normals = family_pairs("box", 300, rng)
+    a = evaluate(points, normals)
+    b = evaluate(points, normals)
+    for name in ("loss", "losses", "contact_forces", "quality"):
+        assert getattr(a, name).tobytes() == getattr(b, name).tobytes()
+    assert np.array_equal(a.passed, b.passed)
+
+
+def test_empty_input() -> None:
+    result = evaluate(np.zeros((0, 4, 3)), np.ones((0, 4, 3)))
+    assert result.n == 0
+    assert result.contact_forces.shape == (0, 1, 4, 3)
+
+
+@pytest.mark.parametrize(
+    ("points", "normals", "match"),
+    [
+        (np.zeros((3, 4)), np.ones((3, 4)), r"expected shape \(N, 4, 3\).*found \(3, 4\)"),
+        (np.zeros((2, 3, 3)), np.ones((2, 3, 3)), r"found \(2, 3, 3\)"),
+        (np.zeros((2, 4, 3)), np.ones((3, 4, 3)), "one set per pair"),
+        (np.full((1, 4, 3), np.nan), np.ones((1, 4, 3)), "NaN or inf.*pair 0"),
+        (np.zeros((1, 4, 3)), np.full((1, 4, 3), np.inf), "contact_normals.*NaN or inf"),
+        (np.zeros((2, 4, 3)), np.r_[np.ones((1, 4, 3)), np.zeros((1, 4, 3))], "pair 1 contact 0"),
+        ("not numbers", np.ones((1, 4, 3)), "numeric array"),
+    ],
+)
+def test_bad_input_gives_clear_errors(points: object, normals: object, match: str) -> None:
+    with pytest.raises(ForceClosureError, match=match):
+        evaluate(points, normals)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"mu": -0.1}, "mu: expected a finite number >= 0"),
+        ({"f_high": 0.0}, "f_high: expected a finite number > 0"),
+        ({"threshold": float("nan")}, "threshold"),
+        ({"convention": "outward"}, "convention: expected one of"),
+        ({"method": "cvxpy"}, "method: expected one of"),
+        ({"wrenches": np.zeros((2, 5))}, r"wrenches: expected shape \(K, 6\)"),
+        ({"wrenches": "sideways"}, "wrenches: expected None"),
+    ],
+)
+def test_bad_parameters_give_clear_errors(kwargs: dict, match: str) -> None:
+    points, normals = plank_squeeze()
+    with pytest.raises(ForceClosureError, match=match):
+        evaluate(points, normals, **kwargs)
+
+
+def test_failed_clarabel_solve_raises(monkeypatch: pytest.MonkeyPatch) -> None:
+    import clarabel
+
+    from dataset_gen.force_closure import clarabel_solver
+
+    class Stopped:
+        status = clarabel.SolverStatus.MaxIterations
+        iterations = 200
+        x = [0.0] * 13
+
+    class FakeSolver:
+        def __init__(self, *args: object) -> None:
+            pass
+
+        def solve(self) -> Stopped:
+            return Stopped()
+
+    monkeypatch.setattr(clarabel_solver.clarabel, "DefaultSolver", FakeSolver)
+    points, normals = plank_squeeze()
+    with pytest.raises(SolverError, match="expected status Solved or AlmostSolved, found"):
+        evaluate(points, normals, method="clarabel")
+
+
+def test_solved_by_reports_the_fallback() -> None:
+    rng = np.random.default_rng(9)
+    points, normals = family_pairs("box", 200, rng)
+    result = evaluate(points, normals, method="fast", max_iterations=1)
+    # With a one-iteration budget most passes cannot be certified and go to Clarabel.
+    assert (result.solved_by == SOLVED_CLARABEL).any()
+    reference = evaluate(points, normals, method="clarabel")
+    assert np.array_equal(result.passed, reference.passed)
+    assert 0.0 < result.fallback_fraction <= 1.0
