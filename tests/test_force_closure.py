@@ -294,3 +294,16 @@ def test_solved_by_reports_the_fallback() -> None:
     reference = evaluate(points, normals, method="clarabel")
     assert np.array_equal(result.passed, reference.passed)
     assert 0.0 < result.fallback_fraction <= 1.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("convention", ["physical", "release"])
+def test_fast_matches_clarabel_on_many_pairs(convention: str) -> None:
+    rng = np.random.default_rng(99)
+    parts = [family_pairs(family, 5000, rng) for family in FAMILIES]
+    points = np.concatenate([p for p, _ in parts])
+    normals = np.concatenate([n for _, n in parts])
+    quick = evaluate(points, normals, convention=convention, loss_rtol=None)
+    reference = evaluate(points, normals, convention=convention, method="clarabel")
+    assert np.array_equal(quick.passed, reference.passed)
+    assert quick.fallback_fraction < 0.02

@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ForceClosureError
-from .geometry import SAFE_CONDITION, FloatArray, full_rank, grasp_quality, project_cone_ball
+from .geometry import SAFE_CONDITION, FloatArray, full_rank, grasp_quality
 
 log = logging.getLogger(__name__)
 
@@ -442,23 +442,3 @@ def _solve_reference(
     losses[pairs, wrench_rows] = batch.losses
     lower[pairs, wrench_rows] = np.nan  # an interior-point solve gives no separate bound here
     solved_by[pairs, wrench_rows] = SOLVED_CLARABEL
-
-
-__all__ = [
-    "CERTIFICATE_MARGIN",
-    "CONVENTIONS",
-    "DEFAULT_F_HIGH",
-    "DEFAULT_GRAVITY",
-    "DEFAULT_MASS",
-    "DEFAULT_MU",
-    "DEFAULT_THRESHOLD",
-    "METHODS",
-    "SOLVED_CLARABEL",
-    "SOLVED_FAST",
-    "SOLVED_NONE",
-    "ForceClosureResult",
-    "axis_gravity_wrenches",
-    "evaluate",
-    "gravity_wrench",
-    "project_cone_ball",
-]

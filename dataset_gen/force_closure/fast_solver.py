@@ -111,6 +111,28 @@ def _project(F, A, i, mu, c, s, f_high):
 
 
 @njit(cache=True, inline="always")
+def _momentum(x, xn, y, t):
+    """FISTA extrapolation with gradient restart (O'Donoghue and Candes): set ``y`` from the new
+    projected point ``xn`` and the previous ``x``, then ``x = xn``; returns the new ``t``."""
+    restart = 0.0
+    for a in range(12):
+        restart += (y[a] - xn[a]) * (xn[a] - x[a])
+    if restart > 0.0:
+        t = 1.0
+        for a in range(12):
+            y[a] = xn[a]
+    else:
+        t_next = 0.5 * (1.0 + math.sqrt(1.0 + 4.0 * t * t))
+        beta = (t - 1.0) / t_next
+        for a in range(12):
+            y[a] = xn[a] + beta * (xn[a] - x[a])
+        t = t_next
+    for a in range(12):
+        x[a] = xn[a]
+    return t
+
+
+@njit(cache=True, inline="always")
 def _dual_bound(P, A, i, w, y, mu, c, s, f_high):
     """Lower bound on L from a direction y (normalised here): ``y.w - f_high sum ||P_K(-G_k^T y)||``."""
     norm = 0.0
@@ -364,21 +386,7 @@ def solve_batch(
                 for a in range(12):
                     xn[a] = y[a] - g[a]
                 _project(xn, A, i, mu, c, s, f_high)
-                restart = 0.0
-                for a in range(12):
-                    restart += (y[a] - xn[a]) * (xn[a] - x[a])
-                if restart > 0.0:
-                    t = 1.0
-                    for a in range(12):
-                        y[a] = xn[a]
-                else:
-                    t_next = 0.5 * (1.0 + math.sqrt(1.0 + 4.0 * t * t))
-                    beta = (t - 1.0) / t_next
-                    for a in range(12):
-                        y[a] = xn[a] + beta * (xn[a] - x[a])
-                    t = t_next
-                for a in range(12):
-                    x[a] = xn[a]
+                t = _momentum(x, xn, y, t)
                 if it % check_every == 0 or it == 1:
                     _apply_g(P, i, x, w, r)
                     norm = 0.0
@@ -427,21 +435,7 @@ def solve_batch(
                 for a in range(12):
                     xn[a] = y[a] - step * g[a]
                 _project(xn, A, i, mu, c, s, f_high)
-                restart = 0.0
-                for a in range(12):
-                    restart += (y[a] - xn[a]) * (xn[a] - x[a])
-                if restart > 0.0:
-                    t = 1.0
-                    for a in range(12):
-                        y[a] = xn[a]
-                else:
-                    t_next = 0.5 * (1.0 + math.sqrt(1.0 + 4.0 * t * t))
-                    beta = (t - 1.0) / t_next
-                    for a in range(12):
-                        y[a] = xn[a] + beta * (xn[a] - x[a])
-                    t = t_next
-                for a in range(12):
-                    x[a] = xn[a]
+                t = _momentum(x, xn, y, t)
                 if refine % check_every == 0:
                     _apply_g(P, i, x, w, r)
                     norm = 0.0
