@@ -15,7 +15,11 @@ from collections.abc import Sequence
 
 from dataset_gen.errors import Dg16mError
 
-COMMAND_MODULES: tuple[str, ...] = ("dataset_gen.commands", "dataset_gen.verify_command")
+COMMAND_MODULES: tuple[str, ...] = (
+    "dataset_gen.commands",
+    "dataset_gen.verify_command",
+    "dataset_gen.generate_command",
+)
 """Modules that add subcommands, in the order they appear in ``dg16m --help``."""
 
 

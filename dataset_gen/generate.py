@@ -1,0 +1,449 @@
+"""The offline generator: meshes or procedural objects in, one release-schema HDF5 per object out.
+
+Per object (:func:`generate_object`): antipodal single-arm sampling, all unique pairs with the
+0.1 m centre pruning and gripper-gripper collision rejection, force closure on every candidate
+(verdict-only), then up to 2000 passing and 2000 failing pairs (failing losses proven > 0.5 and
+computed exactly). The result is a :class:`~dataset_gen.io.DualGraspSet` in the release schema
+with our extras under ``dg16m/``.
+
+A dataset run (:func:`generate_dataset`) maps that task over objects with a local process pool or
+Ray. Every object's random stream is derived from ``(seed, object id)`` alone, so the bytes of
+each file do not depend on the worker count, the order or the backend. Files are written
+atomically and the folder's ``manifest.json`` is rewritten after each object by the parent
+process only; a rerun skips objects whose entry is ``ok`` and whose file exists, so an
+interrupted run (even ``kill -9``) resumes to the same bytes. An object that cannot be loaded or
+processed (a broken mesh) is recorded as ``failed`` with its reason and does not stop the run.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import time
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from .errors import Dg16mError
+from .io import (
+    DualGraspSet,
+    new_manifest,
+    package_version,
+    read_manifest,
+    write_dg16m,
+    write_manifest,
+)
+from .objects import MESH_SUFFIXES, GraspObject, load_object
+from .pairing import candidate_pairs, dual_contacts, dual_poses, score_pairs, select_pairs
+from .procedural import make_procedural_object
+from .sampling import sample_antipodal_grasps
+
+Backend = Literal["local", "ray"]
+GRASPS_FOLDER = "grasps"
+
+
+class GenerationError(Dg16mError, ValueError):
+    """Bad generator arguments (counts, folders, backend)."""
+
+
+@dataclass(frozen=True)
+class GenerationParameters:
+    """Everything that decides a generated file's bytes (besides the object and package version).
+
+    Attributes:
+        seed: global seed; each object's stream is derived from (seed, object id).
+        gripper: gripper model name (``dataset_gen.gripper.GRIPPERS``).
+        n_grasps: single-arm grasps sampled per object (the release: 500).
+        mu: friction coefficient for sampling and force closure.
+        mass: object mass for the gravity wrench (kg; the release: 6).
+        gravity: m/s^2 (the release: 10).
+        f_high: force bound per contact (N; the release: 70).
+        threshold: force-closure threshold on the residual norm (the release: 1e-5).
+        convention: ``"physical"`` or ``"release"`` friction cones.
+        min_center_distance: grasp-centre pruning distance (m; the release: 0.1).
+        check_gripper_collision: reject pairs whose grippers collide (the release does not).
+        max_passing, max_failing: pairs kept per object (the release: 2000 each).
+        failing_min_loss: failing pairs kept must have a loss above this (the release: 0.5).
+    """
+
+    seed: int = 0
+    gripper: str = "panda"
+    n_grasps: int = 500
+    mu: float = 0.4
+    mass: float = 6.0
+    gravity: float = 10.0
+    f_high: float = 70.0
+    threshold: float = 1e-5
+    convention: Literal["physical", "release"] = "physical"
+    min_center_distance: float = 0.1
+    check_gripper_collision: bool = True
+    max_passing: int = 2000
+    max_failing: int = 2000
+    failing_min_loss: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("n_grasps", "max_passing", "max_failing"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 0 or (name == "n_grasps" and value < 2):
+                raise GenerationError(
+                    f"{name}: expected an integer >= {2 if name == 'n_grasps' else 0}, found {value!r}"
+                )
+        if not isinstance(self.seed, int) or self.seed < 0:
+            raise GenerationError(f"seed: expected an integer >= 0, found {self.seed!r}")
+
+
+@dataclass(frozen=True)
+class ObjectSource:
+    """Where one object comes from: a mesh file or a procedural (family, seed)."""
+
+    object_id: str
+    mesh: Path | None = None
+    family: str | None = None
+    family_seed: int | None = None
+    scale: float | None = None
+
+    def load(self, mass: float) -> GraspObject:
+        """Build the object (raises :class:`~dataset_gen.errors.MeshError` for broken meshes)."""
+        if self.mesh is not None:
+            return load_object(self.mesh, object_id=self.object_id, scale=self.scale, mass=mass)
+        if self.family is None or self.family_seed is None:
+            raise GenerationError(
+                f"{self.object_id}: expected a mesh file or a procedural (family, seed), found neither"
+            )
+        return make_procedural_object(self.family, self.family_seed, mass=mass)
+
+    @property
+    def object_file(self) -> str:
+        """The ``object/file`` string stored in the output."""
+        if self.mesh is not None:
+            return self.mesh.name
+        return f"meshes/{self.object_id}.obj"
+
+
+def object_seed(seed: int, object_id: str) -> int:
+    """A 64-bit seed for one object from the global seed and its id (sha256, stable everywhere)."""
+    digest = hashlib.sha256(f"dg16m:{seed}:{object_id}".encode()).digest()
+    return int.from_bytes(digest[:8], "little")
+
+
+def mesh_sources(
+    folder: str | os.PathLike[str], *, scale: float | None = None
+) -> list[ObjectSource]:
+    """One source per mesh file in ``folder`` (not recursive), sorted by file name.
+
+    Raises:
+        GenerationError: the folder does not exist, holds no mesh files, or two files share a stem.
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        raise GenerationError(f"--meshes: expected a folder of mesh files, found no folder {root}")
+    files = sorted(p for p in root.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+    if not files:
+        raise GenerationError(
+            f"--meshes {root}: expected mesh files ({', '.join(sorted(MESH_SUFFIXES))}), found none"
+        )
+    stems: dict[str, Path] = {}
+    for path in files:
+        if path.stem in stems:
+            raise GenerationError(
+                f"--meshes {root}: expected unique file stems (object ids), found {stems[path.stem].name} "
+                f"and {path.name}"
+            )
+        stems[path.stem] = path
+    return [ObjectSource(object_id=p.stem, mesh=p, scale=scale) for p in files]
+
+
+def procedural_sources(specs: Sequence[tuple[str, int]]) -> list[ObjectSource]:
+    """Sources for procedural ``(family, seed)`` specs (see :mod:`dataset_gen.procedural`)."""
+    from .procedural import object_id as procedural_id
+
+    return [
+        ObjectSource(object_id=procedural_id(family, seed), family=family, family_seed=seed)
+        for family, seed in specs
+    ]
+
+
+@dataclass
+class StageTimes:
+    """Seconds spent per stage of one object."""
+
+    load: float = 0.0
+    sampling: float = 0.0
+    pairing: float = 0.0
+    force_closure: float = 0.0
+    selection: float = 0.0
+    writing: float = 0.0
+
+    @property
+    def total(self) -> float:
+        return sum(asdict(self).values())
+
+
+def generate_object(
+    obj: GraspObject,
+    params: GenerationParameters,
+    *,
+    object_file: str,
+    times: StageTimes | None = None,
+) -> DualGraspSet:
+    """Run sampling, pairing, force closure and selection for one object.
+
+    Args:
+        obj: the object, centred (object frame, m).
+        params: generator parameters; the random stream is ``object_seed(params.seed, id)``.
+        object_file: the string stored as ``object/file``.
+        times: filled with the seconds spent per stage when given.
+
+    Returns:
+        The object's dual grasps (release schema) with extras: ``single_grasps`` (M, 4, 4),
+        ``single_contact_points`` / ``single_contact_normals`` (M, 2, 3), ``single_widths`` (M,),
+        ``pair_indices`` (S, 2) rows of the single grasps, ``contact_normals`` (S, 4, 3) outward
+        normals used by the check, ``quality`` (S,) Q(G); metadata holds the parameters, the
+        seeds, per-stage counts and the package version.
+    """
+    times = times if times is not None else StageTimes()
+    rng = np.random.default_rng(object_seed(params.seed, obj.object_id))
+    start = time.perf_counter()
+    grasps = sample_antipodal_grasps(
+        obj, gripper=params.gripper, n_grasps=params.n_grasps, mu=params.mu, rng=rng
+    )
+    times.sampling = time.perf_counter() - start
+
+    start = time.perf_counter()
+    candidates = candidate_pairs(
+        grasps,
+        min_center_distance=params.min_center_distance,
+        check_gripper_collision=params.check_gripper_collision,
+    )
+    times.pairing = time.perf_counter() - start
+
+    start = time.perf_counter()
+    fc_kwargs = {
+        "mass": params.mass,
+        "gravity": params.gravity,
+        "mu": params.mu,
+        "f_high": params.f_high,
+        "threshold": params.threshold,
+    }
+    result = score_pairs(grasps, candidates.pairs, convention=params.convention, **fc_kwargs)
+    times.force_closure = time.perf_counter() - start
+
+    start = time.perf_counter()
+    points, normals = dual_contacts(grasps, candidates.pairs)
+    selection = select_pairs(
+        result,
+        points,
+        normals,
+        rng=rng,
+        max_passing=params.max_passing,
+        max_failing=params.max_failing,
+        failing_min_loss=params.failing_min_loss,
+    )
+    rows = selection.indices
+    pairs = candidates.pairs[rows]
+    n_pass = int(selection.passed.sum())
+    counts = {
+        "sampled": grasps.n,
+        **{f"sampling_{k}": int(v) for k, v in grasps.counts.items()},
+        **{f"pairs_{k}": int(v) for k, v in candidates.counts.items()},
+        "rank_deficient": int((~result.rank_ok).sum()),
+        "passing": int(result.passed.sum()),
+        **{f"selection_{k}": int(v) for k, v in selection.counts.items()},
+    }
+    data = DualGraspSet(
+        grasps=dual_poses(grasps, pairs),
+        contact_points=points[rows],
+        contact_forces=selection.contact_forces,
+        loss_values=selection.loss,
+        passing_indices=np.arange(n_pass, dtype=np.int64),
+        failed_indices=np.arange(n_pass, selection.n, dtype=np.int64),
+        object_file=object_file,
+        object_scale=float(obj.scale),
+        extras={
+            "single_grasps": grasps.poses,
+            "single_contact_points": grasps.contact_points,
+            "single_contact_normals": grasps.contact_normals,
+            "single_widths": grasps.widths,
+            "pair_indices": pairs.astype(np.int64),
+            "contact_normals": normals[rows],
+            "quality": selection.quality,
+        },
+        metadata={
+            "object_id": obj.object_id,
+            "gripper": params.gripper,
+            "parameters": asdict(params),
+            "object_seed": object_seed(params.seed, obj.object_id),
+            "counts": counts,
+            "generator": f"dg16m {package_version()}",
+        },
+    )
+    times.selection = time.perf_counter() - start
+    return data
+
+
+def _task(source: ObjectSource, out: str, params: GenerationParameters) -> dict[str, Any]:
+    """Load, generate and write one object; returns its manifest entry (and timings)."""
+    times = StageTimes()
+    relative = f"{GRASPS_FOLDER}/{source.object_id}.h5"
+    start = time.perf_counter()
+    try:
+        obj = source.load(params.mass)
+        times.load = time.perf_counter() - start
+        data = generate_object(obj, params, object_file=source.object_file, times=times)
+    except Dg16mError as exc:  # a broken mesh (or an unusable object) fails only its own entry
+        return {"status": "failed", "files": {}, "error": str(exc), "_times": asdict(times)}
+    start = time.perf_counter()
+    write_dg16m(Path(out) / relative, data)
+    times.writing = time.perf_counter() - start
+    entry = {
+        "status": "ok",
+        "files": {"grasps": relative},
+        "pairs": data.n,
+        "passing": int(data.passing_indices.size),
+        "failing": int(data.failed_indices.size),
+        "counts": data.metadata["counts"],
+    }
+    entry["_times"] = asdict(times)
+    return entry
+
+
+def _finished(out: Path, manifest: dict[str, Any], object_id: str) -> bool:
+    entry = manifest["entries"].get(object_id)
+    if not entry or entry.get("status") != "ok":
+        return False
+    return all((out / rel).is_file() for rel in entry["files"].values())
+
+
+def _local_results(
+    todo: list[ObjectSource], out: Path, params: GenerationParameters, workers: int
+) -> Iterator[tuple[ObjectSource, dict[str, Any]]]:
+    if workers == 1:
+        for source in todo:
+            yield source, _task(source, str(out), params)
+        return
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        pending: dict[Future[dict[str, Any]], ObjectSource] = {}
+        queue = list(todo)
+        while queue or pending:
+            while queue and len(pending) < 2 * workers:
+                source = queue.pop(0)
+                pending[pool.submit(_task, source, str(out), params)] = source
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for future in done:
+                yield pending.pop(future), future.result()
+
+
+def _ray_results(
+    todo: list[ObjectSource], out: Path, params: GenerationParameters, address: str | None
+) -> Iterator[tuple[ObjectSource, dict[str, Any]]]:
+    try:
+        import ray
+    except ImportError as exc:
+        raise GenerationError(
+            "--backend ray: expected the ray package (pip install 'dg16m[ray]'), found it missing"
+        ) from exc
+    started_here = not ray.is_initialized()
+    if started_here:
+        if address is None:
+            ray.init(include_dashboard=False, _node_ip_address="127.0.0.1", log_to_driver=False)
+        else:
+            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+    try:
+        remote = ray.remote(_task)
+        refs = {remote.remote(source, str(out.resolve()), params): source for source in todo}
+        waiting = list(refs)
+        while waiting:
+            done, waiting = ray.wait(waiting, num_returns=1)
+            for ref in done:
+                yield refs[ref], ray.get(ref)
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+def generate_dataset(
+    sources: Sequence[ObjectSource],
+    out: str | os.PathLike[str],
+    params: GenerationParameters,
+    *,
+    workers: int = 1,
+    backend: Backend = "local",
+    address: str | None = None,
+    progress: bool = True,
+    on_object: Callable[[str, dict[str, Any]], None] | None = None,
+) -> dict[str, Any]:
+    """Generate every object not yet finished in ``out``; returns the final manifest.
+
+    Args:
+        sources: the objects (unique ids).
+        out: dataset folder: ``grasps/<id>.h5`` and ``manifest.json``.
+        params: generator parameters (stored in the manifest; a rerun must use the same).
+        workers: local processes (``backend="local"``).
+        backend: ``"local"`` (process pool; 1 worker runs in this process) or ``"ray"``.
+        address: Ray address (``"auto"`` or ``host:port``); None starts a local Ray on loopback.
+        progress: show a progress bar with objects/s and ETA.
+        on_object: called with (object id, entry) after each object is recorded.
+
+    Raises:
+        GenerationError: bad arguments, duplicate ids, or ``out`` holds a dataset made with
+            other parameters.
+    """
+    if workers < 1:
+        raise GenerationError(f"--workers: expected an integer >= 1, found {workers}")
+    if backend not in ("local", "ray"):
+        raise GenerationError(f"--backend: expected 'local' or 'ray', found {backend!r}")
+    ids = [s.object_id for s in sources]
+    if len(set(ids)) != len(ids):
+        duplicate = next(i for i in ids if ids.count(i) > 1)
+        raise GenerationError(f"objects: expected unique ids, found {duplicate!r} twice")
+    root = Path(out)
+    root.mkdir(parents=True, exist_ok=True)
+    parameters = asdict(params)
+    if (root / "manifest.json").is_file():
+        manifest = read_manifest(root)
+        if manifest["kind"] != "grasps" or manifest["parameters"] != parameters:
+            raise GenerationError(
+                f"{root}: expected a grasp dataset made with the same parameters to resume, found "
+                f"kind {manifest['kind']!r} with parameters {manifest['parameters']} (use another --out)"
+            )
+    else:
+        manifest = new_manifest("grasps", parameters)
+    # A killed run can leave temporary files of atomic writes behind; they are never read.
+    for stale in (root / GRASPS_FOLDER).glob(".*.tmp-*") if (root / GRASPS_FOLDER).is_dir() else ():
+        stale.unlink()
+    todo = [s for s in sources if not _finished(root, manifest, s.object_id)]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(
+            total=len(sources),
+            initial=len(sources) - len(todo),
+            unit="object",
+            desc="generate",
+            smoothing=0.05,
+        )
+    results = (
+        _local_results(todo, root, params, workers)
+        if backend == "local"
+        else _ray_results(todo, root, params, address)
+    )
+    try:
+        for source, entry in results:
+            entry = dict(entry)
+            entry.pop("_times", None)
+            manifest["entries"][source.object_id] = entry
+            manifest["entries"] = dict(sorted(manifest["entries"].items()))
+            write_manifest(root, manifest)
+            if on_object is not None:
+                on_object(source.object_id, entry)
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    return manifest
