@@ -28,6 +28,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from .atomic import write_bytes_atomic
 from .errors import Dg16mError
 from .io import (
     DualGraspSet,
@@ -118,7 +119,8 @@ class ObjectSource:
 
     @property
     def object_file(self) -> str:
-        """The ``object/file`` string stored in the output."""
+        """The ``object/file`` string stored in the output; for procedural objects the mesh is
+        written there, relative to the dataset folder."""
         if self.mesh is not None:
             return self.mesh.name
         return f"meshes/{self.object_id}.obj"
@@ -297,11 +299,15 @@ def _task(source: ObjectSource, out: str, params: GenerationParameters) -> dict[
     except Dg16mError as exc:  # a broken mesh (or an unusable object) fails only its own entry
         return {"status": "failed", "files": {}, "error": str(exc), "_times": asdict(times)}
     start = time.perf_counter()
+    files = {"grasps": relative}
+    if source.mesh is None:  # procedural: store the mesh so the folder is self-contained
+        files["mesh"] = source.object_file
+        write_bytes_atomic(Path(out) / files["mesh"], obj.mesh.export(file_type="obj").encode())
     write_dg16m(Path(out) / relative, data)
     times.writing = time.perf_counter() - start
     entry = {
         "status": "ok",
-        "files": {"grasps": relative},
+        "files": files,
         "pairs": data.n,
         "passing": int(data.passing_indices.size),
         "failing": int(data.failed_indices.size),

@@ -139,6 +139,10 @@ def test_cli_generate_and_stats(tmp_path: Path, capsys: pytest.CaptureFixture[st
     )
     assert code == 0
     assert "2 objects ok, 0 failed" in capsys.readouterr().out
+    mesh = next((out / "meshes").glob("*.obj"))
+    grasps = out / "grasps" / f"{mesh.stem}.h5"
+    assert main(["verify", str(grasps), "--mesh", str(mesh), "--strict"]) == 0
+    assert "100.00% of verdicts" in capsys.readouterr().out
     code = main(["stats", str(out), "--out", str(tmp_path / "stats")])
     assert code == 0
     text = capsys.readouterr().out
