@@ -288,24 +288,19 @@ def generate_object(
 
 
 def _task(source: ObjectSource, out: str, params: GenerationParameters) -> dict[str, Any]:
-    """Load, generate and write one object; returns its manifest entry (and timings)."""
-    times = StageTimes()
+    """Load, generate and write one object; returns its manifest entry."""
     relative = f"{GRASPS_FOLDER}/{source.object_id}.h5"
-    start = time.perf_counter()
     try:
         obj = source.load(params.mass)
-        times.load = time.perf_counter() - start
-        data = generate_object(obj, params, object_file=source.object_file, times=times)
+        data = generate_object(obj, params, object_file=source.object_file)
     except Dg16mError as exc:  # a broken mesh (or an unusable object) fails only its own entry
-        return {"status": "failed", "files": {}, "error": str(exc), "_times": asdict(times)}
-    start = time.perf_counter()
+        return {"status": "failed", "files": {}, "error": str(exc)}
     files = {"grasps": relative}
     if source.mesh is None:  # procedural: store the mesh so the folder is self-contained
         files["mesh"] = source.object_file
         write_bytes_atomic(Path(out) / files["mesh"], obj.mesh.export(file_type="obj").encode())
     write_dg16m(Path(out) / relative, data)
-    times.writing = time.perf_counter() - start
-    entry = {
+    return {
         "status": "ok",
         "files": files,
         "pairs": data.n,
@@ -313,8 +308,6 @@ def _task(source: ObjectSource, out: str, params: GenerationParameters) -> dict[
         "failing": int(data.failed_indices.size),
         "counts": data.metadata["counts"],
     }
-    entry["_times"] = asdict(times)
-    return entry
 
 
 def _finished(out: Path, manifest: dict[str, Any], object_id: str) -> bool:
@@ -440,11 +433,8 @@ def generate_dataset(
     )
     try:
         for source, entry in results:
-            entry = dict(entry)
-            entry.pop("_times", None)
             manifest["entries"][source.object_id] = entry
-            manifest["entries"] = dict(sorted(manifest["entries"].items()))
-            write_manifest(root, manifest)
+            write_manifest(root, manifest)  # sorted keys: the bytes do not depend on order
             if on_object is not None:
                 on_object(source.object_id, entry)
             if bar is not None:
@@ -452,4 +442,5 @@ def generate_dataset(
     finally:
         if bar is not None:
             bar.close()
+    manifest["entries"] = dict(sorted(manifest["entries"].items()))
     return manifest

@@ -29,7 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import SolverError
-from .geometry import FloatArray, contact_frames, project_cone_ball
+from .geometry import FloatArray, apply_grasp, contact_frames, project_cone_ball
 
 _N_VAR = 13  # t and four 3-vectors
 _N_ROW = 7 + 4 * 4 + 4 * 3  # 35
@@ -165,7 +165,5 @@ def solve_batch(
                 f"(points {points[i].tolist()}, axes {axes[i].tolist()})"
             )
     forces = project_cone_ball(x[:, 1:].reshape(n, 4, 3), axes, mu, f_high)
-    residual = np.concatenate(
-        [forces.sum(axis=1), np.cross(points, forces).sum(axis=1)], axis=-1
-    ) + np.asarray(wrenches, dtype=np.float64)
+    residual = apply_grasp(points, forces) + np.asarray(wrenches, dtype=np.float64)
     return ClarabelBatch(forces=forces, losses=np.linalg.norm(residual, axis=1), statuses=statuses)

@@ -42,6 +42,25 @@ CERTIFIED_FAIL = 2
 
 
 @njit(cache=True, inline="always")
+def _matvec6(M, v, out):
+    """out = M v for a 6x6 matrix."""
+    for a in range(6):
+        acc = 0.0
+        for b in range(6):
+            acc += M[a, b] * v[b]
+        out[a] = acc
+
+
+@njit(cache=True, inline="always")
+def _norm6(v):
+    """Euclidean norm of a length-6 vector."""
+    total = 0.0
+    for a in range(6):
+        total += v[a] * v[a]
+    return math.sqrt(total)
+
+
+@njit(cache=True, inline="always")
 def _apply_g(P, i, F, w, out):
     """out = G F + w for pair i."""
     for j in range(6):
@@ -135,10 +154,7 @@ def _momentum(x, xn, y, t):
 @njit(cache=True, inline="always")
 def _dual_bound(P, A, i, w, y, mu, c, s, f_high):
     """Lower bound on L from a direction y (normalised here): ``y.w - f_high sum ||P_K(-G_k^T y)||``."""
-    norm = 0.0
-    for j in range(6):
-        norm += y[j] * y[j]
-    norm = math.sqrt(norm)
+    norm = _norm6(y)
     if norm == 0.0:
         return -np.inf
     value = 0.0
@@ -276,15 +292,8 @@ def _largest_eigenvalue(H):
     lam = 0.0
     u = np.zeros(6)
     for _ in range(30):
-        for a in range(6):
-            acc = 0.0
-            for b in range(6):
-                acc += H[a, b] * v[b]
-            u[a] = acc
-        norm = 0.0
-        for a in range(6):
-            norm += u[a] * u[a]
-        norm = math.sqrt(norm)
+        _matvec6(H, v, u)
+        norm = _norm6(u)
         if norm == 0.0:
             break
         lam = norm
@@ -357,11 +366,7 @@ def solve_batch(
         for j in range(n_w):
             w = W[j]
             # start: the minimum-norm solution of G F = -w, projected onto C
-            for a in range(6):
-                acc = 0.0
-                for b in range(6):
-                    acc += M[a, b] * w[b]
-                z[a] = acc
+            _matvec6(M, w, z)
             _apply_gt(P, i, z, g)
             for k in range(4):
                 for a in range(3):
@@ -377,11 +382,7 @@ def solve_batch(
             while it < max_iterations:
                 it += 1
                 _apply_g(P, i, y, w, r)
-                for a in range(6):
-                    acc = 0.0
-                    for b in range(6):
-                        acc += M[a, b] * r[b]
-                    z[a] = acc
+                _matvec6(M, r, z)
                 _apply_gt(P, i, z, g)
                 for a in range(12):
                     xn[a] = y[a] - g[a]
@@ -389,21 +390,14 @@ def solve_batch(
                 t = _momentum(x, xn, y, t)
                 if it % check_every == 0 or it == 1:
                     _apply_g(P, i, x, w, r)
-                    norm = 0.0
-                    for a in range(6):
-                        norm += r[a] * r[a]
-                    ub = math.sqrt(norm)
+                    ub = _norm6(r)
                     if ub <= thr_pass:
                         verdict = CERTIFIED_PASS
                         break
                     lb = _dual_bound(P, A, i, w, r, mu, c, s, f_high)
                     if lb > best_lb:
                         best_lb = lb
-                    for a in range(6):
-                        acc = 0.0
-                        for b in range(6):
-                            acc += M[a, b] * r[b]
-                        z[a] = acc
+                    _matvec6(M, r, z)
                     lb = _dual_bound(P, A, i, w, z, mu, c, s, f_high)
                     if lb > best_lb:
                         best_lb = lb
@@ -438,10 +432,7 @@ def solve_batch(
                 t = _momentum(x, xn, y, t)
                 if refine % check_every == 0:
                     _apply_g(P, i, x, w, r)
-                    norm = 0.0
-                    for a in range(6):
-                        norm += r[a] * r[a]
-                    value = math.sqrt(norm)
+                    value = _norm6(r)
                     if value < best_ub:
                         best_ub = value
                         for a in range(12):
