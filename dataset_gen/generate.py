@@ -20,8 +20,7 @@ from __future__ import annotations
 import hashlib
 import os
 import time
-from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -40,10 +39,10 @@ from .io import (
 )
 from .objects import MESH_SUFFIXES, GraspObject, load_object
 from .pairing import candidate_pairs, dual_contacts, dual_poses, score_pairs, select_pairs
+from .parallel import Backend, run_tasks
 from .procedural import make_procedural_object
 from .sampling import sample_antipodal_grasps
 
-Backend = Literal["local", "ray"]
 GRASPS_FOLDER = "grasps"
 
 
@@ -317,53 +316,6 @@ def _finished(out: Path, manifest: dict[str, Any], object_id: str) -> bool:
     return all((out / rel).is_file() for rel in entry["files"].values())
 
 
-def _local_results(
-    todo: list[ObjectSource], out: Path, params: GenerationParameters, workers: int
-) -> Iterator[tuple[ObjectSource, dict[str, Any]]]:
-    if workers == 1:
-        for source in todo:
-            yield source, _task(source, str(out), params)
-        return
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        pending: dict[Future[dict[str, Any]], ObjectSource] = {}
-        queue = list(todo)
-        while queue or pending:
-            while queue and len(pending) < 2 * workers:
-                source = queue.pop(0)
-                pending[pool.submit(_task, source, str(out), params)] = source
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for future in done:
-                yield pending.pop(future), future.result()
-
-
-def _ray_results(
-    todo: list[ObjectSource], out: Path, params: GenerationParameters, address: str | None
-) -> Iterator[tuple[ObjectSource, dict[str, Any]]]:
-    try:
-        import ray
-    except ImportError as exc:
-        raise GenerationError(
-            "--backend ray: expected the ray package (pip install 'dg16m[ray]'), found it missing"
-        ) from exc
-    started_here = not ray.is_initialized()
-    if started_here:
-        if address is None:
-            ray.init(include_dashboard=False, _node_ip_address="127.0.0.1", log_to_driver=False)
-        else:
-            ray.init(address=address, include_dashboard=False, log_to_driver=False)
-    try:
-        remote = ray.remote(_task)
-        refs = {remote.remote(source, str(out.resolve()), params): source for source in todo}
-        waiting = list(refs)
-        while waiting:
-            done, waiting = ray.wait(waiting, num_returns=1)
-            for ref in done:
-                yield refs[ref], ray.get(ref)
-    finally:
-        if started_here:
-            ray.shutdown()
-
-
 def generate_dataset(
     sources: Sequence[ObjectSource],
     out: str | os.PathLike[str],
@@ -426,10 +378,13 @@ def generate_dataset(
             desc="generate",
             smoothing=0.05,
         )
-    results = (
-        _local_results(todo, root, params, workers)
-        if backend == "local"
-        else _ray_results(todo, root, params, address)
+    results = run_tasks(
+        _task,
+        todo,
+        (str(root.resolve()), params),
+        workers=workers,
+        backend=backend,
+        address=address,
     )
     try:
         for source, entry in results:

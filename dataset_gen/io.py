@@ -767,7 +767,7 @@ def read_dg16m(path: PathLike) -> DualGraspSet:
         raise GraspFileError(f"{path}: {exc}") from None
 
 
-def _write_array(group: h5py.Group, name: str, arr: np.ndarray, level: int | None) -> None:
+def write_array(group: h5py.Group, name: str, arr: np.ndarray, level: int | None) -> None:
     """Create one dataset deterministically: no timestamps, explicit whole-row chunks."""
     data = arr.astype(arr.dtype.newbyteorder("<"), copy=False) if arr.dtype.itemsize > 1 else arr
     options: dict[str, Any] = {"track_times": False}
@@ -818,7 +818,7 @@ def write_dg16m(
     with atomic_path(path) as tmp, h5py.File(tmp, "w", track_order=False) as f:
         grasps = f.create_group("grasps", track_order=False)
         for name, arr in release.items():
-            _write_array(grasps, name, arr, compression_level)
+            write_array(grasps, name, arr, compression_level)
         obj = f.create_group("object", track_order=False)
         obj.create_dataset(
             "file", data=data.object_file, dtype=h5py.string_dtype("utf-8"), track_times=False
@@ -828,7 +828,7 @@ def write_dg16m(
         ext.attrs.create("schema_version", np.int64(SCHEMA_VERSION))
         ext.attrs.create("metadata", metadata_json, dtype=h5py.string_dtype("utf-8"))
         for name in sorted(data.extras):
-            _write_array(ext, name, data.extras[name], compression_level)
+            write_array(ext, name, data.extras[name], compression_level)
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,0 +1,760 @@
+"""The simulation benchmark: dual grasps on fixed objects, each labelled by a MuJoCo trial.
+
+Building (``dg16m benchmark build``)
+------------------------------------
+For each object of the procedural ``benchmark`` split (300 objects, 10 families x 30), or of a
+user's meshes with DG16M grasp files:
+
+1. sample :attr:`BenchmarkParameters.n_grasps` antipodal single-arm grasps (Panda hand);
+2. pair them like the generator (0.1 m centre pruning, gripper-gripper collision) and check force
+   closure; draw up to ``n_passing`` passing and ``n_failing`` failing candidates, plus
+   ``n_random`` uniformly random pairs of the same grasps (the paper's ablation, scored too), so
+   that labels are mixed; with a DG16M file instead, draw its stored passing / failing pairs;
+3. run the trial protocol (:mod:`dg16m_env.trial`) on every pair: the simulation label.
+
+Objects are independent tasks (process pool or Ray); each finished object is written to
+``OUT/objects/<id>.h5`` and recorded in ``OUT/manifest.json``, so an interrupted build resumes.
+The last step concatenates them, in the order of the object list, into ``OUT/benchmark.h5``.
+Results do not depend on the number of workers or the backend.
+
+File schema (``format = "dg16m-benchmark"``, ``schema_version = 1``)
+----------------------------------------------------------------------
+Root attributes: ``format``, ``schema_version``, ``metadata`` (JSON: parameters, scene,
+protocol, phases, status names, sources, package version).
+
+``objects/`` (O rows): ``ids`` (str), ``families`` (str, "" for meshes), ``seeds`` (int64, -1 for
+meshes), ``files`` (str: mesh file, relative to the build's mesh folder, "" for procedural),
+``scales`` (float64), ``masses`` (float64, kg), ``parts`` (str: JSON list of
+:meth:`~dataset_gen.objects.ConvexPart.to_dict`, object frame, m).
+
+``grasps/`` (N rows): ``object_index`` (int32 row of ``objects/``), ``poses`` (N, 2, 4, 4) float64
+hand poses gripper -> object frame (m, dg16m grasp frame of the Panda hand),
+``contact_points`` (N, 4, 3) float64 (m), ``contact_normals`` (N, 4, 3) float64 outward unit
+normals (NaN when the source file has none), ``source`` (int8, index into :data:`SOURCES`),
+``fc_passed`` (bool), ``fc_loss`` (float64, N: force-closure residual).
+
+``sim/`` (N rows, see :class:`dg16m_env.trial.TrialResults`): ``status`` (int8
+:class:`~dg16m_env.trial.TrialStatus`), ``success`` (bool, the label), ``failing_phase`` (int8
+index into :data:`~dg16m_env.trial.PHASES`, -1 none), ``invalid_reason`` (int8),
+``max_displacement`` (float64, m), ``max_rotation_deg`` (float64), ``max_penetration`` (float64,
+m), ``contacts_after_close`` and ``contacts_final`` ((N, 2) int16), ``ejected`` (bool).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from dataset_gen.atomic import atomic_path
+from dataset_gen.errors import Dg16mError
+from dataset_gen.force_closure import evaluate
+from dataset_gen.generate import ObjectSource, mesh_sources, object_seed, procedural_sources
+from dataset_gen.gripper import get_gripper
+from dataset_gen.io import (
+    new_manifest,
+    package_version,
+    read_dg16m,
+    read_manifest,
+    write_array,
+    write_manifest,
+)
+from dataset_gen.objects import ConvexPart, GraspObject, part_from_dict
+from dataset_gen.pairing import (
+    candidate_pairs,
+    dual_contacts,
+    dual_poses,
+    random_pairs,
+    score_pairs,
+)
+from dataset_gen.parallel import Backend, run_tasks
+from dataset_gen.procedural import benchmark_specs
+from dataset_gen.sampling import sample_antipodal_grasps
+from dg16m_env.decomposition import object_parts
+from dg16m_env.scene import SceneParameters, compile_scene
+from dg16m_env.trial import PHASES, TrialProtocol, TrialResults, TrialStatus, run_trials
+
+FORMAT = "dg16m-benchmark"
+SCHEMA_VERSION = 1
+BENCHMARK_FILE = "benchmark.h5"
+OBJECTS_FOLDER = "objects"
+
+SOURCES = ("fc_pass", "fc_fail", "random", "file_pass", "file_fail")
+"""Where a benchmark pair comes from: force-closure candidates that pass / fail, uniformly random
+pairs (the ablation), or the passing / failing pairs of a user's DG16M file."""
+
+EMBEDDED_BENCHMARK = Path(__file__).with_name("data") / BENCHMARK_FILE
+"""The procedural benchmark built with the default parameters, shipped with the package."""
+
+_FLOAT_SIM = ("max_displacement", "max_rotation_deg", "max_penetration")
+
+
+class BenchmarkError(Dg16mError, ValueError):
+    """Bad benchmark arguments or a malformed benchmark file."""
+
+
+@dataclass(frozen=True)
+class BenchmarkParameters:
+    """Everything that decides a benchmark's content (besides the objects and package version).
+
+    Attributes:
+        seed: global seed; each object's stream derives from (seed, object id).
+        n_grasps: single-arm grasps sampled per object.
+        n_passing: force-closure-passing candidate pairs per object (fewer if not available; the
+            shortfall is filled with failing candidates).
+        n_failing: failing candidate pairs per object.
+        n_random: uniformly random pairs per object (the ablation; scored, not filtered).
+        mu: friction coefficient (sampling, force closure and simulation).
+        mass: object mass (kg).
+        f_high: force bound per contact in the force-closure check (N).
+        threshold: force-closure threshold (N).
+        min_center_distance: pruning distance of the candidates (m).
+        scene: simulation constants (``friction`` is set from ``mu``).
+        protocol: trial protocol (``gravity`` is used by force closure too).
+    """
+
+    seed: int = 0
+    n_grasps: int = 200
+    n_passing: int = 40
+    n_failing: int = 30
+    n_random: int = 30
+    mu: float = 0.4
+    mass: float = 6.0
+    f_high: float = 70.0
+    threshold: float = 1e-5
+    min_center_distance: float = 0.1
+    scene: SceneParameters = field(default_factory=SceneParameters)
+    protocol: TrialProtocol = field(default_factory=TrialProtocol)
+
+    def __post_init__(self) -> None:
+        for name in ("seed", "n_grasps", "n_passing", "n_failing", "n_random"):
+            value = getattr(self, name)
+            low = 2 if name == "n_grasps" else 0
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise BenchmarkError(f"{name}: expected an integer >= {low}, found {value!r}")
+        for name in ("mu", "mass", "f_high", "threshold"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise BenchmarkError(f"{name}: expected a positive number, found {value!r}")
+        if self.scene.friction != self.mu:
+            object.__setattr__(self, "scene", replace(self.scene, friction=self.mu))
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["scene"] = self.scene.to_dict()
+        return out
+
+
+# --------------------------------------------------------------------------------------------
+# In-memory benchmark
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class BenchmarkObject:
+    """One object of a benchmark (see the file schema in the module docstring)."""
+
+    object_id: str
+    family: str
+    seed: int
+    file: str
+    scale: float
+    mass: float
+    parts: tuple[ConvexPart, ...]
+
+    def load(self, mesh_root: str | os.PathLike[str] | None = None) -> GraspObject:
+        """Rebuild the :class:`GraspObject` (procedural: from family and seed; mesh: from
+        ``mesh_root / file``)."""
+        if self.family:
+            return ObjectSource(self.object_id, family=self.family, family_seed=self.seed).load(
+                self.mass
+            )
+        if mesh_root is None:
+            raise BenchmarkError(
+                f"{self.object_id}: expected a mesh folder holding {self.file!r}, found none given"
+            )
+        return ObjectSource(
+            self.object_id, mesh=Path(mesh_root) / self.file, scale=self.scale
+        ).load(self.mass)
+
+
+@dataclass(eq=False)
+class Benchmark:
+    """Benchmark rows (N dual grasps over O objects); see the module docstring for units.
+
+    Attributes:
+        objects: the O objects.
+        object_index: (N,) int32.
+        poses: (N, 2, 4, 4).
+        contact_points, contact_normals: (N, 4, 3).
+        source: (N,) int8 index into :data:`SOURCES`.
+        fc_passed: (N,) bool.
+        fc_loss: (N,) float64.
+        trials: the simulation results (labels).
+        metadata: parameters and provenance (JSON-ready).
+    """
+
+    objects: list[BenchmarkObject]
+    object_index: np.ndarray
+    poses: np.ndarray
+    contact_points: np.ndarray
+    contact_normals: np.ndarray
+    source: np.ndarray
+    fc_passed: np.ndarray
+    fc_loss: np.ndarray
+    trials: TrialResults
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return int(self.object_index.size)
+
+    @property
+    def labels(self) -> np.ndarray:
+        """(N,) bool simulation labels (True: the dual grasp held)."""
+        return self.trials.success
+
+    def object_rows(self, object_id: str) -> np.ndarray:
+        """Rows of one object."""
+        ids = [o.object_id for o in self.objects]
+        if object_id not in ids:
+            raise BenchmarkError(f"object: expected one of the {len(ids)} ids, found {object_id!r}")
+        return np.flatnonzero(self.object_index == ids.index(object_id))
+
+    def summary(self) -> dict[str, Any]:
+        """Success rates per source (valid trials only), penetration, failure phases."""
+        valid = self.trials.valid
+        per_source: dict[str, Any] = {}
+        for k, name in enumerate(SOURCES):
+            rows = self.source == k
+            if not rows.any():
+                continue
+            ran = rows & valid
+            per_source[name] = {
+                "pairs": int(rows.sum()),
+                "valid": int(ran.sum()),
+                "fc_pass_fraction": float(self.fc_passed[rows].mean()),
+                "sim_success_rate": float(self.labels[ran].mean()) if ran.any() else None,
+            }
+        fc = self.fc_passed & valid
+        random_rows = (self.source == SOURCES.index("random")) & valid
+        return {
+            "objects": len(self.objects),
+            "pairs": self.n,
+            "trials": self.trials.summary(),
+            "by_source": per_source,
+            "sim_success_rate_fc_passing": float(self.labels[fc].mean()) if fc.any() else None,
+            "sim_success_rate_fc_failing": (
+                float(self.labels[~self.fc_passed & valid].mean())
+                if (~self.fc_passed & valid).any()
+                else None
+            ),
+            "sim_success_rate_random": (
+                float(self.labels[random_rows].mean()) if random_rows.any() else None
+            ),
+        }
+
+
+def concatenate(parts: Sequence[Benchmark], metadata: Mapping[str, Any] | None = None) -> Benchmark:
+    """One benchmark from several (objects appended in order)."""
+    if not parts:
+        raise BenchmarkError("expected at least one object's benchmark, found none")
+    objects: list[BenchmarkObject] = []
+    index = []
+    for part in parts:
+        index.append(part.object_index + len(objects))
+        objects.extend(part.objects)
+    trials = TrialResults(
+        **{
+            k: np.concatenate([getattr(p.trials, k) for p in parts])
+            for k in TrialResults.ARRAY_FIELDS
+        },
+        protocol=parts[0].trials.protocol,
+    )
+    return Benchmark(
+        objects=objects,
+        object_index=np.concatenate(index).astype(np.int32),
+        poses=np.concatenate([p.poses for p in parts]),
+        contact_points=np.concatenate([p.contact_points for p in parts]),
+        contact_normals=np.concatenate([p.contact_normals for p in parts]),
+        source=np.concatenate([p.source for p in parts]),
+        fc_passed=np.concatenate([p.fc_passed for p in parts]),
+        fc_loss=np.concatenate([p.fc_loss for p in parts]),
+        trials=trials,
+        metadata=dict(metadata if metadata is not None else parts[0].metadata),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# File I/O
+# --------------------------------------------------------------------------------------------
+
+
+def _strings(group: h5py.Group, name: str, values: Sequence[str]) -> None:
+    group.create_dataset(
+        name, data=list(values), dtype=h5py.string_dtype("utf-8"), track_times=False
+    )
+
+
+def write_benchmark(path: str | os.PathLike[str], bench: Benchmark, *, level: int = 4) -> None:
+    """Write ``bench`` to ``path`` atomically and deterministically (equal data, equal bytes)."""
+    metadata = json.dumps(bench.metadata, sort_keys=True, allow_nan=False)
+    with atomic_path(path) as tmp, h5py.File(tmp, "w", track_order=False) as f:
+        f.attrs.create("format", FORMAT, dtype=h5py.string_dtype("utf-8"))
+        f.attrs.create("schema_version", np.int64(SCHEMA_VERSION))
+        f.attrs.create("metadata", metadata, dtype=h5py.string_dtype("utf-8"))
+        objects = f.create_group("objects", track_order=False)
+        _strings(objects, "ids", [o.object_id for o in bench.objects])
+        _strings(objects, "families", [o.family for o in bench.objects])
+        _strings(objects, "files", [o.file for o in bench.objects])
+        _strings(
+            objects,
+            "parts",
+            [json.dumps([p.to_dict() for p in o.parts], sort_keys=True) for o in bench.objects],
+        )
+        write_array(objects, "seeds", np.array([o.seed for o in bench.objects], np.int64), None)
+        write_array(objects, "scales", np.array([o.scale for o in bench.objects]), None)
+        write_array(objects, "masses", np.array([o.mass for o in bench.objects]), None)
+        grasps = f.create_group("grasps", track_order=False)
+        write_array(grasps, "object_index", bench.object_index.astype(np.int32), level)
+        write_array(grasps, "poses", bench.poses.astype(np.float64), level)
+        write_array(grasps, "contact_points", bench.contact_points.astype(np.float64), level)
+        write_array(grasps, "contact_normals", bench.contact_normals.astype(np.float64), level)
+        write_array(grasps, "source", bench.source.astype(np.int8), level)
+        write_array(grasps, "fc_passed", bench.fc_passed.astype(bool), level)
+        write_array(grasps, "fc_loss", bench.fc_loss.astype(np.float64), level)
+        sim = f.create_group("sim", track_order=False)
+        for name in TrialResults.ARRAY_FIELDS:
+            write_array(sim, name, np.asarray(getattr(bench.trials, name)), level)
+        write_array(sim, "success", bench.trials.success, level)
+
+
+def _read(
+    f: h5py.File, path: Path, key: str, shape: tuple[int | None, ...], kinds: str
+) -> np.ndarray:
+    if key not in f:
+        raise BenchmarkError(f"{path}: expected dataset {key!r}, found it missing")
+    arr = f[key][()]
+    if (
+        arr.dtype.kind not in kinds
+        or arr.ndim != len(shape)
+        or any(want is not None and got != want for got, want in zip(arr.shape, shape, strict=True))
+    ):
+        raise BenchmarkError(
+            f"{path}: {key}: expected shape {shape} of kind {kinds!r}, found {arr.shape} "
+            f"{arr.dtype}"
+        )
+    return arr
+
+
+def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
+    """Read a benchmark file (validating the schema in the module docstring).
+
+    Raises:
+        BenchmarkError: not a benchmark file, wrong version, missing or mis-shaped datasets,
+            indices out of range, non-finite poses.
+    """
+    path = Path(path)
+    try:
+        f = h5py.File(path, "r")
+    except (OSError, FileNotFoundError) as exc:
+        raise BenchmarkError(
+            f"{path}: expected a dg16m benchmark HDF5 file, found: {exc}"
+        ) from None
+    with f:
+        fmt = f.attrs.get("format")
+        fmt = fmt.decode() if isinstance(fmt, bytes) else fmt
+        if fmt != FORMAT:
+            raise BenchmarkError(f"{path}: expected format {FORMAT!r}, found {fmt!r}")
+        version = int(f.attrs.get("schema_version", -1))
+        if version != SCHEMA_VERSION:
+            raise BenchmarkError(
+                f"{path}: expected schema_version {SCHEMA_VERSION}, found {version}"
+            )
+        try:
+            metadata = json.loads(f.attrs["metadata"])
+        except (KeyError, ValueError) as exc:
+            raise BenchmarkError(f"{path}: expected JSON metadata, found: {exc}") from None
+        ids = [s.decode() for s in _read(f, path, "objects/ids", (None,), "OS")]
+        o = len(ids)
+        families = [s.decode() for s in _read(f, path, "objects/families", (o,), "OS")]
+        files = [s.decode() for s in _read(f, path, "objects/files", (o,), "OS")]
+        parts_json = [s.decode() for s in _read(f, path, "objects/parts", (o,), "OS")]
+        seeds = _read(f, path, "objects/seeds", (o,), "i")
+        scales = _read(f, path, "objects/scales", (o,), "f")
+        masses = _read(f, path, "objects/masses", (o,), "f")
+        index = _read(f, path, "grasps/object_index", (None,), "i")
+        n = index.size
+        arrays = {
+            "poses": _read(f, path, "grasps/poses", (n, 2, 4, 4), "f"),
+            "contact_points": _read(f, path, "grasps/contact_points", (n, 4, 3), "f"),
+            "contact_normals": _read(f, path, "grasps/contact_normals", (n, 4, 3), "f"),
+            "source": _read(f, path, "grasps/source", (n,), "i"),
+            "fc_passed": _read(f, path, "grasps/fc_passed", (n,), "b"),
+            "fc_loss": _read(f, path, "grasps/fc_loss", (n,), "f"),
+        }
+        sim = {}
+        for name in TrialResults.ARRAY_FIELDS:
+            shape: tuple[int | None, ...] = (n, 2) if name.startswith("contacts") else (n,)
+            kinds = "f" if name in _FLOAT_SIM else ("b" if name == "ejected" else "i")
+            sim[name] = _read(f, path, f"sim/{name}", shape, kinds)
+    if n and (index.min() < 0 or index.max() >= o):
+        raise BenchmarkError(
+            f"{path}: grasps/object_index: expected values in [0, {o}), found "
+            f"[{index.min()}, {index.max()}]"
+        )
+    if not np.isfinite(arrays["poses"]).all():
+        raise BenchmarkError(f"{path}: grasps/poses: expected finite poses, found NaN/inf")
+    if n and (arrays["source"].min() < 0 or arrays["source"].max() >= len(SOURCES)):
+        raise BenchmarkError(f"{path}: grasps/source: expected values in [0, {len(SOURCES)})")
+    objects = []
+    for i in range(o):
+        try:
+            parts = tuple(part_from_dict(p) for p in json.loads(parts_json[i]))
+        except (ValueError, TypeError, Dg16mError) as exc:
+            raise BenchmarkError(f"{path}: objects/parts[{i}] ({ids[i]}): {exc}") from None
+        objects.append(
+            BenchmarkObject(
+                ids[i],
+                families[i],
+                int(seeds[i]),
+                files[i],
+                float(scales[i]),
+                float(masses[i]),
+                parts,
+            )
+        )
+    protocol = TrialProtocol(**metadata.get("parameters", {}).get("protocol", {}))
+    return Benchmark(
+        objects=objects,
+        object_index=index.astype(np.int32),
+        trials=TrialResults(**sim, protocol=protocol),
+        metadata=metadata,
+        **arrays,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Building one object
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BenchmarkSource:
+    """One object to benchmark: where it comes from, and optionally a DG16M file of its grasps.
+
+    Attributes:
+        source: the object (procedural or mesh file).
+        grasp_file: a DG16M file (release schema) whose pairs are simulated instead of sampling.
+        grasp_gripper: the gripper whose frame the file's poses use (the release: robotiq_2f85;
+            files written by dg16m record theirs); poses are moved so that their contacts sit at
+            the Panda hand's contact depth.
+    """
+
+    source: ObjectSource
+    grasp_file: Path | None = None
+    grasp_gripper: str | None = None
+
+    @property
+    def object_id(self) -> str:
+        return self.source.object_id
+
+
+def _choose(rows: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
+    if count >= rows.size:
+        return rows
+    return np.sort(rng.choice(rows, size=count, replace=False))
+
+
+def retarget_poses(poses: np.ndarray, from_gripper: str, to_gripper: str = "panda") -> np.ndarray:
+    """Move grasp poses along their approach axis so that contacts made at ``from_gripper``'s
+    contact depth sit at ``to_gripper``'s (both in the dg16m grasp frame; (..., 4, 4), m)."""
+    shift = get_gripper(from_gripper).contact_depth - get_gripper(to_gripper).contact_depth
+    out = np.array(poses, dtype=np.float64, copy=True)
+    out[..., :3, 3] += shift * out[..., :3, 1]
+    return out
+
+
+def _object_metadata(
+    obj: GraspObject, source: ObjectSource, parts: Sequence[ConvexPart]
+) -> BenchmarkObject:
+    return BenchmarkObject(
+        object_id=obj.object_id,
+        family=source.family or "",
+        seed=int(source.family_seed) if source.family_seed is not None else -1,
+        file=source.mesh.name if source.mesh is not None else "",
+        scale=float(obj.scale),
+        mass=float(obj.mass_properties.mass),
+        parts=tuple(parts),
+    )
+
+
+def _sampled_pairs(
+    obj: GraspObject, params: BenchmarkParameters, rng: np.random.Generator
+) -> dict[str, np.ndarray]:
+    grasps = sample_antipodal_grasps(obj, n_grasps=params.n_grasps, mu=params.mu, rng=rng)
+    candidates = candidate_pairs(grasps, min_center_distance=params.min_center_distance)
+    fc_kwargs = {
+        "mass": params.mass,
+        "gravity": params.protocol.gravity,
+        "mu": params.mu,
+        "f_high": params.f_high,
+        "threshold": params.threshold,
+    }
+    verdict = score_pairs(grasps, candidates.pairs, **fc_kwargs)
+    full_rank = verdict.rank_ok
+    passing = np.flatnonzero(verdict.passed)
+    failing = np.flatnonzero(full_rank & ~verdict.passed)
+    take_pass = _choose(passing, params.n_passing, rng)
+    take_fail = _choose(failing, params.n_failing + params.n_passing - take_pass.size, rng)
+    random = random_pairs(grasps.n, params.n_random, rng)
+    pairs = np.concatenate([candidates.pairs[take_pass], candidates.pairs[take_fail], random])
+    source = np.concatenate(
+        [
+            np.full(take_pass.size, SOURCES.index("fc_pass")),
+            np.full(take_fail.size, SOURCES.index("fc_fail")),
+            np.full(len(random), SOURCES.index("random")),
+        ]
+    ).astype(np.int8)
+    points, normals = dual_contacts(grasps, pairs)
+    exact = evaluate(points, normals, loss_rtol=1e-3, **fc_kwargs)  # exact losses, few pairs
+    return {
+        "poses": dual_poses(grasps, pairs),
+        "contact_points": points,
+        "contact_normals": normals,
+        "source": source,
+        "fc_passed": exact.passed,
+        "fc_loss": exact.loss,
+    }
+
+
+def _file_pairs(
+    item: BenchmarkSource, params: BenchmarkParameters, rng: np.random.Generator
+) -> dict[str, np.ndarray]:
+    assert item.grasp_file is not None
+    data = read_dg16m(item.grasp_file)
+    take_pass = _choose(np.sort(data.passing_indices), params.n_passing, rng)
+    want_fail = params.n_failing + params.n_passing - take_pass.size
+    take_fail = _choose(np.sort(data.failed_indices), want_fail, rng)
+    rows = np.concatenate([take_pass, take_fail])
+    gripper = item.grasp_gripper or data.metadata.get("gripper", "robotiq_2f85")
+    normals = data.extras.get("contact_normals")
+    return {
+        "poses": retarget_poses(data.grasps[rows], gripper),
+        "contact_points": data.contact_points[rows],
+        "contact_normals": (
+            normals[rows] if normals is not None else np.full((rows.size, 4, 3), np.nan)
+        ),
+        "source": np.concatenate(
+            [
+                np.full(take_pass.size, SOURCES.index("file_pass")),
+                np.full(take_fail.size, SOURCES.index("file_fail")),
+            ]
+        ).astype(np.int8),
+        "fc_passed": np.concatenate(
+            [np.ones(take_pass.size, bool), np.zeros(take_fail.size, bool)]
+        ),
+        "fc_loss": data.loss_values[rows],
+    }
+
+
+def benchmark_object(item: BenchmarkSource, params: BenchmarkParameters) -> Benchmark:
+    """Choose and simulate one object's dual grasps (see the module docstring)."""
+    source = item.source
+    if item.grasp_file is not None and source.mesh is not None and source.scale is None:
+        # A DG16M file records the mesh scale its contacts were computed with.
+        source = replace(source, scale=read_dg16m(item.grasp_file).object_scale)
+    obj = source.load(params.mass)
+    parts = object_parts(obj)
+    rng = np.random.default_rng(object_seed(params.seed, f"benchmark:{obj.object_id}"))
+    rows = (
+        _file_pairs(item, params, rng)
+        if item.grasp_file is not None
+        else _sampled_pairs(obj, params, rng)
+    )
+    scene = compile_scene(obj, params=params.scene, parts=parts)
+    trials = run_trials(scene, rows["poses"], params.protocol)
+    return Benchmark(
+        objects=[_object_metadata(obj, source, parts)],
+        object_index=np.zeros(len(rows["poses"]), dtype=np.int32),
+        trials=trials,
+        metadata=benchmark_metadata(params),
+        **rows,
+    )
+
+
+def benchmark_metadata(params: BenchmarkParameters) -> dict[str, Any]:
+    return {
+        "parameters": params.to_dict(),
+        "phases": list(PHASES),
+        "statuses": [s.name.lower() for s in TrialStatus],
+        "sources": list(SOURCES),
+        "created_by": f"dg16m {package_version()}",
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# Building many objects
+# --------------------------------------------------------------------------------------------
+
+
+def procedural_benchmark_sources(limit: int | None = None) -> list[BenchmarkSource]:
+    """The 300 procedural benchmark objects (the first ``limit`` when given)."""
+    specs = benchmark_specs()
+    if limit is not None:
+        if limit < 1:
+            raise BenchmarkError(f"--limit: expected an integer >= 1, found {limit}")
+        specs = specs[:limit]
+    return [BenchmarkSource(s) for s in procedural_sources(specs)]
+
+
+def read_split(split: str) -> list[str]:
+    """Object ids from a split: a text file (one id per line, ``#`` comments) or ``a,b,c``."""
+    path = Path(split)
+    if path.is_file():
+        lines = path.read_text(encoding="utf-8").splitlines()
+        ids = [line.split("#")[0].strip() for line in lines]
+    else:
+        ids = [part.strip() for part in split.split(",")]
+    ids = [i for i in ids if i]
+    if not ids:
+        raise BenchmarkError(f"--split {split}: expected object ids (a file or a,b,c), found none")
+    return ids
+
+
+def file_benchmark_sources(
+    meshes: str | os.PathLike[str],
+    grasps: str | os.PathLike[str],
+    split: Sequence[str] | None = None,
+    *,
+    grasp_gripper: str | None = None,
+) -> list[BenchmarkSource]:
+    """Sources for a user's meshes and DG16M files: ``grasps/<id>.h5`` pairs with the mesh whose
+    file name its ``object/file`` names (or ``meshes/<id>.*``)."""
+    grasp_dir = Path(grasps)
+    if not grasp_dir.is_dir():
+        raise BenchmarkError(
+            f"--grasps: expected a folder of DG16M files, found no folder {grasp_dir}"
+        )
+    by_stem = {s.object_id: s for s in mesh_sources(meshes)}
+    by_name = {s.mesh.name: s for s in by_stem.values() if s.mesh is not None}
+    files = sorted(grasp_dir.glob("*.h5"))
+    ids = list(split) if split is not None else [p.stem for p in files]
+    out = []
+    for object_id in ids:
+        grasp_file = grasp_dir / f"{object_id}.h5"
+        if not grasp_file.is_file():
+            raise BenchmarkError(f"{object_id}: expected grasp file {grasp_file}, found none")
+        named = Path(read_dg16m(grasp_file).object_file).name
+        source = by_name.get(named) or by_stem.get(object_id)
+        if source is None:
+            raise BenchmarkError(
+                f"{object_id}: expected its mesh {named!r} (or {object_id}.*) in {meshes}, found none"
+            )
+        source = replace(source, object_id=object_id)
+        out.append(BenchmarkSource(source, grasp_file=grasp_file, grasp_gripper=grasp_gripper))
+    return out
+
+
+def _object_task(item: BenchmarkSource, out: str, params: BenchmarkParameters) -> dict[str, Any]:
+    relative = f"{OBJECTS_FOLDER}/{item.object_id}.h5"
+    try:
+        bench = benchmark_object(item, params)
+    except Dg16mError as exc:  # a broken mesh or grasp file fails only its own entry
+        return {"status": "failed", "files": {}, "error": str(exc)}
+    write_benchmark(Path(out) / relative, bench)
+    summary = bench.trials.summary()
+    return {
+        "status": "ok",
+        "files": {"benchmark": relative},
+        "pairs": bench.n,
+        "success": summary["success"],
+        "invalid": summary["invalid"],
+        "max_penetration_m": summary["max_penetration_m"],
+    }
+
+
+def build_benchmark(
+    items: Sequence[BenchmarkSource],
+    out: str | os.PathLike[str],
+    params: BenchmarkParameters | None = None,
+    *,
+    workers: int = 1,
+    backend: Backend = "local",
+    address: str | None = None,
+    progress: bool = True,
+) -> Path:
+    """Build (or resume) a benchmark in ``out``; returns the path of ``benchmark.h5``.
+
+    Raises:
+        BenchmarkError: duplicate ids, ``out`` holds a benchmark made with other parameters, or
+            no object succeeded.
+    """
+    params = params or BenchmarkParameters()
+    ids = [item.object_id for item in items]
+    if len(set(ids)) != len(ids):
+        raise BenchmarkError(
+            f"objects: expected unique ids, found {len(ids) - len(set(ids))} repeats"
+        )
+    root = Path(out)
+    root.mkdir(parents=True, exist_ok=True)
+    parameters = json.loads(json.dumps(params.to_dict()))
+    if (root / "manifest.json").is_file():
+        manifest = read_manifest(root)
+        if manifest["kind"] != "benchmark" or manifest["parameters"] != parameters:
+            raise BenchmarkError(
+                f"{root}: expected a benchmark built with the same parameters to resume, found kind "
+                f"{manifest['kind']!r} with other parameters (use another --out)"
+            )
+    else:
+        manifest = new_manifest("benchmark", parameters)
+    objects_dir = root / OBJECTS_FOLDER
+    for stale in objects_dir.glob(".*.tmp-*") if objects_dir.is_dir() else ():
+        stale.unlink()
+
+    def finished(object_id: str) -> bool:
+        entry = manifest["entries"].get(object_id)
+        return (
+            bool(entry)
+            and entry["status"] == "ok"
+            and all((root / rel).is_file() for rel in entry["files"].values())
+        )
+
+    todo = [item for item in items if not finished(item.object_id)]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(
+            total=len(items), initial=len(items) - len(todo), unit="object", desc="benchmark"
+        )
+    try:
+        for item, entry in run_tasks(
+            _object_task,
+            todo,
+            (str(root.resolve()), params),
+            workers=workers,
+            backend=backend,
+            address=address,
+        ):
+            manifest["entries"][item.object_id] = entry
+            write_manifest(root, manifest)
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    done = [i for i in ids if manifest["entries"].get(i, {}).get("status") == "ok"]
+    if not done:
+        raise BenchmarkError(f"{root}: expected at least one object to build, found all failed")
+    parts = [read_benchmark(root / manifest["entries"][i]["files"]["benchmark"]) for i in done]
+    path = root / BENCHMARK_FILE
+    write_benchmark(path, concatenate(parts, benchmark_metadata(params)))
+    return path

@@ -1,0 +1,699 @@
+"""The dual-grasp trial protocol (DG16M paper, Section IV) run in C with ``mujoco.rollout``.
+
+One trial, for one dual grasp (two hand poses in the object frame):
+
+1. **Check** (not simulated): both hands at their poses with fingers fully open and the object at
+   rest at the origin. If an open hand penetrates the object deeper than
+   :attr:`TrialProtocol.invalid_penetration`, or the two hands overlap, the trial is
+   ``INVALID`` and is not run (the grasp cannot be reached).
+2. **close** (:attr:`TrialProtocol.close_time` s, gravity off): every finger pushes with the
+   scene's squeeze force (70 N) and the fingers close on the object.
+3. **gravity** (:attr:`TrialProtocol.gravity_time` s): the object's weight ``m g`` acts at its
+   centre of mass.
+4. **Disturbances**, one after the other, each for :attr:`TrialProtocol.disturbance_time` s on
+   top of gravity: a force of ``disturbance_force_fraction * m g`` along ``+x, -x, +y, -y, +z,
+   -z`` (world = initial object frame), then a torque of ``disturbance_force_fraction * m g *
+   disturbance_torque_arm`` about the same six directions.
+
+The hands never move (they stand for arms holding their pose). **Success** when, at every step
+after the fingers closed, the object moves less than :attr:`TrialProtocol.max_displacement` at
+each hand's grasp centre (slip relative to the hands) and turns less than
+:attr:`TrialProtocol.max_rotation_deg`, both measured from its pose at the end of *close*
+(and within the same bounds of its initial pose during *close*). The first step outside the
+bounds names the failing phase. A trial whose state turns non-finite or whose object moves faster
+than :attr:`TrialProtocol.max_speed` is ``UNSTABLE`` (never seen with the default settings; it is
+reported, not hidden). Penetration is the deepest object contact while the object is held
+(before it first leaves the bounds; once it slips out, fingers closing on its edges mean nothing).
+
+Every trial of one object shares one compiled model; trials run in batches through
+``mujoco.rollout`` (single thread per process, so results are bit-for-bit reproducible).
+"""
+
+from __future__ import annotations
+
+import enum
+import itertools
+import math
+from collections.abc import Iterator, Sequence
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from dataset_gen.errors import Dg16mError
+from dataset_gen.objects import is_rigid
+from dg16m_env.scene import OBJECT_CONTACTS_SENSOR, Scene
+
+DIRECTIONS = ("+x", "-x", "+y", "-y", "+z", "-z")
+"""Disturbance directions, world axes = the object's initial frame."""
+
+PHASES: tuple[str, ...] = (
+    "close",
+    "gravity",
+    *(f"force{d}" for d in DIRECTIONS),
+    *(f"torque{d}" for d in DIRECTIONS),
+)
+"""Trial phases in order; :attr:`TrialResults.failing_phase` indexes this tuple (-1: none)."""
+
+_CONTROL_SPEC = (
+    mujoco.mjtState.mjSTATE_CTRL
+    | mujoco.mjtState.mjSTATE_XFRC_APPLIED
+    | mujoco.mjtState.mjSTATE_MOCAP_POS
+    | mujoco.mjtState.mjSTATE_MOCAP_QUAT
+)
+_STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+class TrialError(Dg16mError, ValueError):
+    """Bad trial input: grasp array shapes, non-finite or non-rigid poses, bad protocol values."""
+
+
+class TrialStatus(enum.IntEnum):
+    """Outcome of one trial."""
+
+    SUCCESS = 0
+    """The object stayed within the bounds through every phase."""
+    FAILED = 1
+    """The object left the bounds; see the failing phase."""
+    INVALID = 2
+    """Not run: an open hand penetrates the object, or the hands overlap."""
+    UNSTABLE = 3
+    """The simulation produced non-finite numbers or an implausible speed."""
+
+
+class InvalidReason(enum.IntEnum):
+    """Why a trial was not run (``NONE`` for trials that ran)."""
+
+    NONE = 0
+    HAND0_PENETRATES = 1
+    HAND1_PENETRATES = 2
+    HANDS_OVERLAP = 3
+
+
+@dataclass(frozen=True)
+class TrialProtocol:
+    """Timing, loads and success thresholds of a trial (SI units; see the module docstring).
+
+    Attributes:
+        gravity: gravitational acceleration (m/s^2; the DG16M release uses 10).
+        close_time: duration of the closing phase, gravity off (s).
+        gravity_time: duration of the gravity phase (s).
+        disturbance_time: duration of each of the 12 disturbances (s).
+        ramp_time: at the start of each phase the load moves linearly from the previous phase's
+            to the new one over this time (s); a step load would shake the grasp.
+        disturbance_force_fraction: disturbance force as a fraction of the object's weight.
+        disturbance_torque_arm: lever arm turning the disturbance force into a torque (m).
+        max_displacement: allowed displacement of the object at either hand's grasp centre,
+            i.e. slip relative to the hands (m).
+        max_rotation_deg: allowed rotation of the object (degrees).
+        invalid_penetration: an open hand deeper than this in the object makes the trial
+            invalid (m).
+        max_speed: an object faster than this is a simulation failure (m/s).
+        batch_size: trials per ``mujoco.rollout`` call (memory vs. overhead).
+    """
+
+    gravity: float = 10.0
+    close_time: float = 0.5
+    gravity_time: float = 0.4
+    disturbance_time: float = 0.2
+    ramp_time: float = 0.05
+    disturbance_force_fraction: float = 0.5
+    disturbance_torque_arm: float = 0.05
+    max_displacement: float = 0.02
+    max_rotation_deg: float = 10.0
+    invalid_penetration: float = 5e-4
+    max_speed: float = 50.0
+    batch_size: int = 64
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            ok = isinstance(value, (int, float)) and math.isfinite(value)
+            if f.name == "batch_size":
+                ok = isinstance(value, int) and value >= 1
+            elif f.name in ("disturbance_force_fraction", "disturbance_torque_arm"):
+                ok = ok and value >= 0
+            else:
+                ok = ok and value > 0
+            if not ok:
+                raise TrialError(f"{f.name}: expected a positive finite number, found {value!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def phase_steps(self, timestep: float) -> np.ndarray:
+        """(len(PHASES),) number of steps of each phase at ``timestep`` (s)."""
+        times = [self.close_time, self.gravity_time] + [self.disturbance_time] * 12
+        return np.array([max(1, round(t / timestep)) for t in times], dtype=np.int64)
+
+
+@dataclass
+class TrialResults:
+    """Per-trial results for N dual grasps (arrays of length N unless noted).
+
+    Attributes:
+        status: :class:`TrialStatus` codes (int8).
+        failing_phase: index into :data:`PHASES` of the first phase that broke the bounds,
+            -1 when none (int8).
+        invalid_reason: :class:`InvalidReason` codes (int8).
+        max_displacement: largest displacement of the object at the hands' grasp centres (the
+            slip relative to the hands) up to the end of the
+            failing phase, or over the whole trial (m; NaN for invalid trials).
+        max_rotation_deg: the same for the rotation (degrees).
+        max_penetration: deepest object contact while the object is held, i.e. over the steps
+            before it first leaves the bounds (m, >= 0; for invalid trials the open hands'
+            penetration at the check).
+        contacts_after_close: (N, 2) contacts between the object and each hand at the end of
+            *close* (int16).
+        contacts_final: (N, 2) the same at the end of the trial.
+        ejected: the object left faster than ``max_speed`` or with non-finite state.
+        protocol: the protocol used.
+    """
+
+    status: np.ndarray
+    failing_phase: np.ndarray
+    invalid_reason: np.ndarray
+    max_displacement: np.ndarray
+    max_rotation_deg: np.ndarray
+    max_penetration: np.ndarray
+    contacts_after_close: np.ndarray
+    contacts_final: np.ndarray
+    ejected: np.ndarray
+    protocol: TrialProtocol = field(default_factory=TrialProtocol)
+
+    ARRAY_FIELDS = (
+        "status",
+        "failing_phase",
+        "invalid_reason",
+        "max_displacement",
+        "max_rotation_deg",
+        "max_penetration",
+        "contacts_after_close",
+        "contacts_final",
+        "ejected",
+    )
+
+    @classmethod
+    def empty(cls, n: int, protocol: TrialProtocol) -> TrialResults:
+        return cls(
+            status=np.full(n, TrialStatus.INVALID, dtype=np.int8),
+            failing_phase=np.full(n, -1, dtype=np.int8),
+            invalid_reason=np.zeros(n, dtype=np.int8),
+            max_displacement=np.full(n, np.nan),
+            max_rotation_deg=np.full(n, np.nan),
+            max_penetration=np.zeros(n),
+            contacts_after_close=np.zeros((n, 2), dtype=np.int16),
+            contacts_final=np.zeros((n, 2), dtype=np.int16),
+            ejected=np.zeros(n, dtype=bool),
+            protocol=protocol,
+        )
+
+    @property
+    def n(self) -> int:
+        return int(self.status.size)
+
+    @property
+    def success(self) -> np.ndarray:
+        """(N,) bool: the grasp held through every phase."""
+        return self.status == TrialStatus.SUCCESS
+
+    @property
+    def valid(self) -> np.ndarray:
+        """(N,) bool: the trial ran (not invalid)."""
+        return self.status != TrialStatus.INVALID
+
+    def phase_name(self, index: int) -> str:
+        """The failing phase of trial ``index`` ('' when none)."""
+        phase = int(self.failing_phase[index])
+        return PHASES[phase] if phase >= 0 else ""
+
+    def summary(self) -> dict[str, Any]:
+        """Counts and rates (JSON-ready)."""
+        valid = self.valid
+        ran = int(valid.sum())
+        phases = {PHASES[p]: int(np.sum(self.failing_phase == p)) for p in range(len(PHASES))}
+        return {
+            "trials": self.n,
+            "invalid": int(self.n - ran),
+            "success": int(self.success.sum()),
+            "failed": int(np.sum(self.status == TrialStatus.FAILED)),
+            "unstable": int(np.sum(self.status == TrialStatus.UNSTABLE)),
+            "success_rate_valid": float(self.success.sum() / ran) if ran else float("nan"),
+            "max_penetration_m": float(self.max_penetration[valid].max()) if ran else 0.0,
+            "ejected": int(self.ejected.sum()),
+            "failing_phases": {k: v for k, v in phases.items() if v},
+        }
+
+    def select(self, rows: np.ndarray) -> TrialResults:
+        """The results of trials ``rows``."""
+        return TrialResults(
+            **{k: getattr(self, k)[rows] for k in self.ARRAY_FIELDS}, protocol=self.protocol
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# Inputs
+# --------------------------------------------------------------------------------------------
+
+
+def check_dual_grasps(grasps: object) -> np.ndarray:
+    """Validate dual grasps: (N, 2, 4, 4) finite rigid transforms (gripper -> object frame, m)."""
+    arr = np.asarray(grasps, dtype=np.float64) if not isinstance(grasps, np.ndarray) else grasps
+    if arr.ndim == 3 and arr.shape == (2, 4, 4):
+        arr = arr[None]
+    if arr.ndim != 4 or arr.shape[1:] != (2, 4, 4):
+        raise TrialError(f"grasps: expected an (N, 2, 4, 4) array of hand poses, found {arr.shape}")
+    arr = np.asarray(arr, dtype=np.float64)
+    finite = np.isfinite(arr).all(axis=(1, 2, 3))
+    if not finite.all():
+        raise TrialError(
+            f"grasps: expected finite poses, found NaN/inf in dual grasp {int(np.argmin(finite))}"
+        )
+    rigid = np.asarray(is_rigid(arr.reshape(-1, 4, 4), atol=1e-5)).reshape(-1, 2).all(axis=1)
+    if not rigid.all():
+        raise TrialError(
+            "grasps: expected rigid transforms (orthonormal rotation, last row 0 0 0 1), found "
+            f"a non-rigid pose in dual grasp {int(np.argmin(rigid))}"
+        )
+    return arr
+
+
+def _quats(rotations: np.ndarray) -> np.ndarray:
+    """(..., 4) quaternions (w, x, y, z) of (..., 3, 3) rotations."""
+    flat = rotations.reshape(-1, 3, 3)
+    out = np.empty((len(flat), 4))
+    for i, R in enumerate(flat):
+        mujoco.mju_mat2Quat(out[i], np.ascontiguousarray(R).ravel())
+    return out.reshape(*rotations.shape[:-2], 4)
+
+
+def _place_hands(scene: Scene, data: mujoco.MjData, pose_pair: np.ndarray) -> None:
+    data.mocap_pos[scene.hand_mocap] = pose_pair[:, :3, 3]
+    data.mocap_quat[scene.hand_mocap] = _quats(pose_pair[:, :3, :3])
+
+
+def _initial_data(scene: Scene) -> mujoco.MjData:
+    data = mujoco.MjData(scene.model)
+    mujoco.mj_resetData(scene.model, data)
+    return data
+
+
+def check_initial_poses(
+    scene: Scene, grasps: np.ndarray, protocol: TrialProtocol
+) -> tuple[np.ndarray, np.ndarray]:
+    """Which dual grasps can be run: open hands clear of the object and of each other.
+
+    Returns:
+        reason: (N,) :class:`InvalidReason` codes (``NONE`` = valid).
+        penetration: (N,) deepest open-hand penetration into the object (m, >= 0).
+    """
+    model = scene.model
+    data = _initial_data(scene)
+    n = len(grasps)
+    reason = np.zeros(n, dtype=np.int8)
+    penetration = np.zeros(n)
+    hand_of_geom = np.full(model.ngeom, -1)
+    for hand, geoms in enumerate(scene.hand_geoms):
+        hand_of_geom[geoms] = hand
+    fromto = np.zeros(6)
+    for i in range(n):
+        _place_hands(scene, data, grasps[i])
+        mujoco.mj_forward(model, data)
+        deepest = np.zeros(2)
+        for c in range(data.ncon):
+            contact = data.contact[c]
+            hand = max(hand_of_geom[contact.geom1], hand_of_geom[contact.geom2])
+            if hand >= 0:
+                deepest[hand] = max(deepest[hand], -contact.dist)
+        penetration[i] = deepest.max()
+        if deepest[0] > protocol.invalid_penetration:
+            reason[i] = InvalidReason.HAND0_PENETRATES
+            continue
+        if deepest[1] > protocol.invalid_penetration:
+            reason[i] = InvalidReason.HAND1_PENETRATES
+            continue
+        for g0 in scene.hand_geoms[0]:
+            for g1 in scene.hand_geoms[1]:
+                gap = mujoco.mj_geomDistance(model, data, int(g0), int(g1), 0.01, fromto)
+                if gap < -protocol.invalid_penetration:
+                    reason[i] = InvalidReason.HANDS_OVERLAP
+                    break
+            if reason[i]:
+                break
+    return reason, penetration
+
+
+# --------------------------------------------------------------------------------------------
+# Schedule and controls
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """Per-step phase index and external wrench on the object for one protocol and scene.
+
+    Attributes:
+        phase: (T,) index into :data:`PHASES` of each step.
+        wrench: (T, 6) force (N) and torque (N m) on the object's centre of mass, world frame.
+        close_end: number of steps of the close phase.
+    """
+
+    phase: np.ndarray
+    wrench: np.ndarray
+    close_end: int
+
+    @property
+    def nstep(self) -> int:
+        return int(self.phase.size)
+
+    def head(self, nstep: int) -> Schedule:
+        """The first ``nstep`` steps."""
+        return Schedule(self.phase[:nstep], self.wrench[:nstep], self.close_end)
+
+
+def schedule(scene: Scene, protocol: TrialProtocol) -> Schedule:
+    """The step-by-step phases and loads of a trial (see the module docstring)."""
+    steps = protocol.phase_steps(scene.model.opt.timestep)
+    phase = np.repeat(np.arange(len(PHASES)), steps)
+    weight = scene.object_mass * protocol.gravity
+    force = protocol.disturbance_force_fraction * weight
+    torque = force * protocol.disturbance_torque_arm
+    per_phase = np.zeros((len(PHASES), 6))
+    per_phase[1:, 2] = -weight  # gravity from the gravity phase on
+    for k, direction in enumerate(DIRECTIONS):
+        axis = "xyz".index(direction[1])
+        sign = 1.0 if direction[0] == "+" else -1.0
+        per_phase[2 + k, axis] += sign * force
+        per_phase[8 + k, 3 + axis] += sign * torque
+    wrench = per_phase[phase]
+    ramp = max(1, round(protocol.ramp_time / scene.model.opt.timestep))
+    starts = np.concatenate([[0], np.cumsum(steps)[:-1]])
+    for p in range(1, len(PHASES)):
+        n = min(ramp, int(steps[p]))
+        alpha = (np.arange(1, n + 1) / n)[:, None]
+        wrench[starts[p] : starts[p] + n] = (1 - alpha) * per_phase[p - 1] + alpha * per_phase[p]
+    return Schedule(phase=phase, wrench=wrench, close_end=int(steps[0]))
+
+
+def _control_layout(scene: Scene) -> tuple[int, dict[str, np.ndarray]]:
+    """Size of a control vector and where ctrl / xfrc / mocap go in it (found by probing)."""
+    model = scene.model
+    size = mujoco.mj_stateSize(model, _CONTROL_SPEC)
+    data = mujoco.MjData(model)
+    probe = {
+        "ctrl": data.ctrl,
+        "xfrc_applied": data.xfrc_applied,
+        "mocap_pos": data.mocap_pos,
+        "mocap_quat": data.mocap_quat,
+    }
+    layout: dict[str, np.ndarray] = {}
+    for name, array in probe.items():
+        for other in probe.values():
+            other[...] = 0.0
+        array.reshape(-1)[:] = np.arange(1, array.size + 1)
+        vec = np.zeros(size)
+        mujoco.mj_getState(model, data, vec, _CONTROL_SPEC)
+        where = np.zeros(array.size, dtype=np.int64)
+        for value in range(1, array.size + 1):
+            (hits,) = np.nonzero(vec == value)
+            where[value - 1] = hits[0]
+        layout[name] = where
+    return size, layout
+
+
+def trial_controls(
+    scene: Scene, grasps: np.ndarray, plan: Schedule, *, squeeze: float | None = None
+) -> np.ndarray:
+    """(N, T, C) open-loop controls: squeeze, hand poses and object wrench at every step."""
+    size, layout = _control_layout(scene)
+    n = len(grasps)
+    controls = np.zeros((n, plan.nstep, size))
+    force = scene.params.squeeze_force if squeeze is None else squeeze
+    controls[:, :, layout["ctrl"][scene.squeeze_actuators]] = force
+    mocap_pos = np.zeros((n, scene.model.nmocap, 3))
+    mocap_quat = np.zeros((n, scene.model.nmocap, 4))
+    mocap_pos[:, scene.hand_mocap] = grasps[:, :, :3, 3]
+    mocap_quat[:, scene.hand_mocap] = _quats(grasps[:, :, :3, :3])
+    controls[:, :, layout["mocap_pos"]] = mocap_pos.reshape(n, 1, -1)
+    controls[:, :, layout["mocap_quat"]] = mocap_quat.reshape(n, 1, -1)
+    xfrc = layout["xfrc_applied"].reshape(scene.model.nbody, 6)[scene.object_body]
+    controls[:, :, xfrc] = plan.wrench[None]
+    return controls
+
+
+def initial_state(scene: Scene) -> np.ndarray:
+    """(S,) full physics state at the start of a trial: object at rest at the origin, fingers
+    open."""
+    data = _initial_data(scene)
+    state = np.zeros(mujoco.mj_stateSize(scene.model, _STATE_SPEC))
+    mujoco.mj_getState(scene.model, data, state, _STATE_SPEC)
+    return state
+
+
+def simulate(
+    scene: Scene, grasps: np.ndarray, protocol: TrialProtocol | None = None
+) -> tuple[np.ndarray, np.ndarray, Schedule]:
+    """Roll out full trials (no validity check) and return their trajectories.
+
+    Returns:
+        states: (N, T, S) full physics states after each step (``mjSTATE_FULLPHYSICS``).
+        sensors: (N, T, D) sensor data after each step.
+        plan: the :class:`Schedule`.
+    """
+    protocol = protocol or TrialProtocol()
+    grasps = check_dual_grasps(grasps)
+    plan = schedule(scene, protocol)
+    controls = trial_controls(scene, grasps, plan)
+    data = mujoco.MjData(scene.model)
+    states, sensors = rollout.rollout(
+        scene.model,
+        data,
+        initial_state(scene)[None],
+        controls,
+        control_spec=_CONTROL_SPEC,
+        nstep=plan.nstep,
+    )
+    return states, sensors, plan
+
+
+# --------------------------------------------------------------------------------------------
+# Analysis
+# --------------------------------------------------------------------------------------------
+
+
+def _rotation_deg(quat: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """Angle (degrees) between unit quaternions ``quat`` (..., 4) and ``ref`` (..., 4)."""
+    dot = np.abs(np.sum(quat * ref, axis=-1) / np.linalg.norm(quat, axis=-1))
+    return np.degrees(2.0 * np.arccos(np.clip(dot, 0.0, 1.0)))
+
+
+def _quat_to_matrix(quat: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotation matrices of (..., 4) quaternions (w, x, y, z), normalised here."""
+    q = quat / np.linalg.norm(quat, axis=-1, keepdims=True)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )
+
+
+def grasp_centres(scene: Scene, grasps: np.ndarray) -> np.ndarray:
+    """(N, 2, 3) each hand's grasp centre (between the pads at ``contact_depth``, m) in the
+    object frame: the points where slip relative to the hands is measured."""
+    depth = scene.gripper.contact_depth
+    return grasps[:, :, :3, 3] + depth * grasps[:, :, :3, 1]
+
+
+def _sensor_slices(scene: Scene) -> tuple[int, int, np.ndarray]:
+    model = scene.model
+    sensor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, OBJECT_CONTACTS_SENSOR)
+    start = int(model.sensor_adr[sensor])
+    hands = np.array(
+        [
+            model.sensor_adr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, f"{h}_contacts")]
+            for h in ("hand0", "hand1")
+        ]
+    )
+    return start, start + 1, hands
+
+
+def analyse(
+    scene: Scene,
+    states: np.ndarray,
+    sensors: np.ndarray,
+    plan: Schedule,
+    protocol: TrialProtocol,
+    anchors: np.ndarray | None = None,
+) -> TrialResults:
+    """Judge rolled-out trials (see the module docstring for the criteria).
+
+    Args:
+        states: (N, T, S) full physics states after each step.
+        sensors: (N, T, D) sensor data after each step.
+        plan: the trial's schedule (T steps).
+        protocol: thresholds.
+        anchors: (N, K, 3) world points where displacement is measured (the hands' grasp
+            centres, :func:`grasp_centres`); default the object's origin.
+    """
+    n = len(states)
+    results = TrialResults.empty(n, protocol)
+    nq = scene.model.nq
+    q0 = 1 + scene.object_qpos.start  # state = [time, qpos, qvel, ...]
+    pos = states[:, :, q0 : q0 + 3]
+    quat = states[:, :, q0 + 3 : q0 + 7]
+    vel = states[:, :, 1 + nq : 1 + nq + 3]
+    count_at, dist_at, hand_at = _sensor_slices(scene)
+
+    close = plan.close_end
+    if anchors is None:  # the object's origin
+        anchors = np.zeros((n, 1, 3))
+    anchors = np.asarray(anchors, dtype=np.float64)
+    # Material points at the anchors: at the start (close phase) and at the end of close (after).
+    rot = _quat_to_matrix(quat)  # (N, T, 3, 3)
+    ref_rot, ref_pos = rot[:, close - 1], pos[:, close - 1]
+    body_points = np.einsum("nji,nkj->nki", ref_rot, anchors - ref_pos[:, None])
+    during = np.einsum("ntij,nkj->ntki", rot[:, :close], anchors) + pos[:, :close, None]
+    after = np.einsum("ntij,nkj->ntki", rot[:, close:], body_points) + pos[:, close:, None]
+    moved = np.concatenate([during, after], axis=1) - anchors[:, None]
+    displacement = np.linalg.norm(moved, axis=-1).max(axis=-1)
+    identity = np.array([1.0, 0.0, 0.0, 0.0])
+    rotation = np.concatenate(
+        [
+            _rotation_deg(quat[:, :close], identity),
+            _rotation_deg(quat[:, close:], quat[:, close - 1 : close]),
+        ],
+        axis=1,
+    )
+    finite = np.isfinite(states).all(axis=2)
+    with np.errstate(invalid="ignore"):
+        broken = ~finite | (np.linalg.norm(vel, axis=-1) > protocol.max_speed)
+        out = (displacement > protocol.max_displacement) | (rotation > protocol.max_rotation_deg)
+    out |= broken
+    steps = plan.nstep
+    first_out = np.where(out.any(axis=1), out.argmax(axis=1), steps)
+    phase_end = np.cumsum(np.bincount(plan.phase, minlength=len(PHASES)))
+    with np.errstate(invalid="ignore"):
+        depth = np.where(sensors[:, :, count_at] > 0, -sensors[:, :, dist_at], 0.0)
+    for i in range(n):
+        failed = first_out[i] < steps
+        phase = int(plan.phase[first_out[i]]) if failed else -1
+        last = int(phase_end[phase]) if failed else steps
+        window = slice(0, last)
+        unstable = bool(broken[i, window].any())
+        results.status[i] = (
+            TrialStatus.UNSTABLE
+            if unstable
+            else (TrialStatus.FAILED if failed else TrialStatus.SUCCESS)
+        )
+        results.failing_phase[i] = phase
+        ok = finite[i, window]
+        results.max_displacement[i] = np.max(np.where(ok, displacement[i, window], np.inf))
+        results.max_rotation_deg[i] = np.max(np.where(ok, rotation[i, window], np.inf))
+        held = slice(0, max(1, int(first_out[i])))  # while the object is held (within bounds)
+        results.max_penetration[i] = np.inf if unstable else max(0.0, float(np.max(depth[i, held])))
+        results.contacts_after_close[i] = sensors[i, close - 1, hand_at]
+        results.contacts_final[i] = sensors[i, last - 1, hand_at]
+        results.ejected[i] = unstable
+    return results
+
+
+def _batches(indices: np.ndarray, size: int) -> Iterator[np.ndarray]:
+    for start in range(0, len(indices), size):
+        yield indices[start : start + size]
+
+
+def run_trials(
+    scene: Scene,
+    grasps: np.ndarray | Sequence[np.ndarray],
+    protocol: TrialProtocol | None = None,
+    *,
+    progress: bool = False,
+) -> TrialResults:
+    """Run the trial protocol on N dual grasps of one object.
+
+    Args:
+        scene: the object's compiled scene (:func:`dg16m_env.scene.compile_scene`).
+        grasps: (N, 2, 4, 4) hand poses, gripper frame -> object frame (m).
+        protocol: timing, loads and thresholds.
+        progress: show a progress bar over batches.
+
+    Returns:
+        :class:`TrialResults` in the order of ``grasps``.
+
+    Raises:
+        TrialError: malformed grasps.
+    """
+    protocol = protocol or TrialProtocol()
+    grasps = check_dual_grasps(grasps)
+    n = len(grasps)
+    results = TrialResults.empty(n, protocol)
+    reason, open_penetration = check_initial_poses(scene, grasps, protocol)
+    results.invalid_reason[:] = reason
+    results.max_penetration[:] = open_penetration
+    runnable = np.flatnonzero(reason == InvalidReason.NONE)
+    if runnable.size == 0:
+        return results
+    plan = schedule(scene, protocol)
+    start = initial_state(scene)[None]
+    data = mujoco.MjData(scene.model)
+    batches = list(_batches(runnable, protocol.batch_size))
+    iterator: Any = batches
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(batches, unit="batch", desc=f"trials {scene.object_id}")
+    segments = _segments(plan)
+    for rows in iterator:
+        controls = trial_controls(scene, grasps[rows], plan)
+        anchors = grasp_centres(scene, grasps[rows])
+        states = np.full((len(rows), plan.nstep, start.shape[1]), np.nan)
+        sensors = np.full((len(rows), plan.nstep, scene.model.nsensordata), np.nan)
+        active = np.arange(len(rows))
+        state = np.repeat(start, len(rows), axis=0)
+        for seg in segments:
+            seg_states, seg_sensors = rollout.rollout(
+                scene.model,
+                data,
+                state[active],
+                controls[active, seg],
+                control_spec=_CONTROL_SPEC,
+                nstep=seg.stop - seg.start,
+            )
+            states[active, seg] = seg_states
+            sensors[active, seg] = seg_sensors
+            state[active] = seg_states[:, -1]
+            # Trials already out of bounds stop here (their later steps stay NaN, unused).
+            partial = analyse(
+                scene,
+                states[active, : seg.stop],
+                sensors[active, : seg.stop],
+                plan.head(seg.stop),
+                protocol,
+                anchors[active],
+            )
+            active = active[partial.status == TrialStatus.SUCCESS]
+            if active.size == 0:
+                break
+        batch = analyse(scene, states, sensors, plan, protocol, anchors)
+        for name in TrialResults.ARRAY_FIELDS:
+            if name != "invalid_reason":
+                getattr(results, name)[rows] = getattr(batch, name)
+    return results
+
+
+def _segments(plan: Schedule) -> list[slice]:
+    """Step ranges run by one ``rollout`` call each; failed trials stop between them: close and
+    gravity, the six forces, the six torques."""
+    bounds = [
+        0,
+        int(np.searchsorted(plan.phase, 2)),
+        int(np.searchsorted(plan.phase, 8)),
+        plan.nstep,
+    ]
+    return [slice(a, b) for a, b in itertools.pairwise(bounds) if b > a]
