@@ -253,7 +253,7 @@ def test_failed_write_keeps_old_file_and_leaves_no_temp(
     path = tmp_path / "obj.h5"
     write_dg16m(path, make_set(seed=0))
     before = path.read_bytes()
-    original = dio._write_array
+    original = dio.write_array
     calls = {"n": 0}
 
     def failing(*args: Any, **kwargs: Any) -> None:
@@ -262,7 +262,7 @@ def test_failed_write_keeps_old_file_and_leaves_no_temp(
             raise RuntimeError("disk full (simulated)")
         original(*args, **kwargs)
 
-    monkeypatch.setattr(dio, "_write_array", failing)
+    monkeypatch.setattr(dio, "write_array", failing)
     with pytest.raises(RuntimeError, match="simulated"):
         write_dg16m(path, make_set(seed=1))
     assert path.read_bytes() == before
