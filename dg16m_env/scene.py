@@ -105,26 +105,52 @@ class SceneParameters:
     object_mass: float | None = None
 
     def __post_init__(self) -> None:
-        positive = ("timestep", "friction", "squeeze_force", "finger_mass", "finger_damping")
-        for name in positive:
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise SceneError(f"{name}: expected a positive finite number, found {value!r}")
+        def number(name: str, value: object) -> float:
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise SceneError(f"{name}: expected a number, found {value!r}")
+            if not math.isfinite(value):
+                raise SceneError(f"{name}: expected a finite number, found {value!r}")
+            return float(value)
+
+        for name in ("timestep", "friction", "squeeze_force", "finger_mass", "finger_damping"):
+            if number(name, getattr(self, name)) <= 0:
+                raise SceneError(
+                    f"{name}: expected a positive number, found {getattr(self, name)!r}"
+                )
         for name in ("torsional_friction", "rolling_friction", "finger_armature"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise SceneError(f"{name}: expected a finite number >= 0, found {value!r}")
-        if not (isinstance(self.iterations, int) and self.iterations >= 1):
-            raise SceneError(f"iterations: expected an integer >= 1, found {self.iterations!r}")
-        if self.object_mass is not None and not (
-            math.isfinite(self.object_mass) and self.object_mass > 0
+            if number(name, getattr(self, name)) < 0:
+                raise SceneError(f"{name}: expected a number >= 0, found {getattr(self, name)!r}")
+        if number("impratio", self.impratio) < 1:
+            raise SceneError(f"impratio: expected a number >= 1, found {self.impratio!r}")
+        if (
+            isinstance(self.iterations, bool)
+            or not isinstance(self.iterations, int)
+            or self.iterations < 1
         ):
+            raise SceneError(f"iterations: expected an integer >= 1, found {self.iterations!r}")
+        if self.object_mass is not None and number("object_mass", self.object_mass) <= 0:
             raise SceneError(
                 f"object_mass: expected a positive mass (kg), found {self.object_mass}"
             )
         if len(self.solref) != 2 or len(self.solimp) != 3:
             raise SceneError(
                 f"solref/solimp: expected 2 and 3 numbers, found {self.solref} and {self.solimp}"
+            )
+        timeconst = number("solref[0]", self.solref[0])
+        if number("solref[1]", self.solref[1]) <= 0:
+            raise SceneError(
+                f"solref[1]: expected a positive damping ratio, found {self.solref[1]}"
+            )
+        if timeconst > 0 and timeconst < 2 * self.timestep:
+            raise SceneError(
+                f"solref[0]: expected a time constant >= 2 * timestep = {2 * self.timestep} s "
+                f"(or <= 0 for that default), found {timeconst}"
+            )
+        dmin, dmax, width = (number(f"solimp[{i}]", v) for i, v in enumerate(self.solimp))
+        if not (0 < dmin <= dmax < 1) or width <= 0:
+            raise SceneError(
+                "solimp: expected 0 < dmin <= dmax < 1 and a positive width (m), found "
+                f"{self.solimp}"
             )
 
     @property

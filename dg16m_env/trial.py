@@ -130,15 +130,19 @@ class TrialProtocol:
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
-            ok = isinstance(value, (int, float)) and math.isfinite(value)
             if f.name == "batch_size":
-                ok = isinstance(value, int) and value >= 1
-            elif f.name in ("disturbance_force_fraction", "disturbance_torque_arm"):
-                ok = ok and value >= 0
-            else:
-                ok = ok and value > 0
-            if not ok:
-                raise TrialError(f"{f.name}: expected a positive finite number, found {value!r}")
+                if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                    raise TrialError(f"batch_size: expected an integer >= 1, found {value!r}")
+                continue
+            ok = (
+                not isinstance(value, bool)
+                and isinstance(value, (int, float))
+                and math.isfinite(value)
+            )
+            zero_ok = f.name in ("disturbance_force_fraction", "disturbance_torque_arm")
+            if not ok or value < 0 or (value == 0 and not zero_ok):
+                expected = "a finite number >= 0" if zero_ok else "a positive finite number"
+                raise TrialError(f"{f.name}: expected {expected}, found {value!r}")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -571,8 +575,13 @@ def analyse(
         axis=1,
     )
     finite = np.isfinite(states).all(axis=2)
+    # mujoco.rollout stops a trajectory at a simulation warning and repeats its last state (and
+    # mj_step resets diverged data): time that does not advance step by step marks it broken.
+    timestep = scene.model.opt.timestep
+    expected_time = timestep * np.arange(1, plan.nstep + 1)
     with np.errstate(invalid="ignore"):
-        broken = ~finite | (np.linalg.norm(vel, axis=-1) > protocol.max_speed)
+        stalled = np.abs(states[:, :, 0] - expected_time) > 0.5 * timestep
+        broken = ~finite | stalled | (np.linalg.norm(vel, axis=-1) > protocol.max_speed)
         out = (displacement > protocol.max_displacement) | (rotation > protocol.max_rotation_deg)
     out |= broken
     steps = plan.nstep

@@ -14,7 +14,17 @@ from dataset_gen import io
 from dataset_gen.cli import build_parser, main
 from dataset_gen.library import load_library
 
-SUBCOMMANDS = ["objects", "show", "inspect", "grippers", "verify"]
+SUBCOMMANDS = [
+    "objects",
+    "show",
+    "inspect",
+    "grippers",
+    "verify",
+    "generate",
+    "stats",
+    "benchmark",
+    "sim",
+]
 
 
 def _image_is_a_picture(path: Path) -> None:
@@ -45,6 +55,10 @@ def test_console_script_help_lists_every_subcommand() -> None:
         ["show"],
         ["inspect"],
         ["grippers"],
+        ["benchmark", "build"],
+        ["benchmark", "info"],
+        ["sim", "replay"],
+        ["sim", "run"],
     ],
 )
 def test_each_subcommand_has_help_with_examples(

@@ -1,0 +1,255 @@
+"""The simulation benchmark: building, resuming, determinism, file schema, the shipped file."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+pytest.importorskip("mujoco")
+
+from dataset_gen.cli import main as cli_main
+from dataset_gen.generate import GenerationParameters, generate_dataset, procedural_sources
+from dataset_gen.io import read_manifest
+from dg16m_env.benchmark import (
+    EMBEDDED_BENCHMARK,
+    SOURCES,
+    BenchmarkError,
+    BenchmarkParameters,
+    benchmark_object,
+    build_benchmark,
+    file_benchmark_sources,
+    procedural_benchmark_sources,
+    read_benchmark,
+    read_split,
+    retarget_poses,
+    write_benchmark,
+)
+from dg16m_env.trial import TrialResults, TrialStatus
+
+SMALL = BenchmarkParameters(n_grasps=60, n_passing=6, n_failing=4, n_random=4)
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("bench")
+    build_benchmark(procedural_benchmark_sources(2), out, SMALL, progress=False)
+    return out
+
+
+def test_build_writes_labelled_mixed_pairs(built: Path) -> None:
+    bench = read_benchmark(built / "benchmark.h5")
+    assert [o.object_id for o in bench.objects] == [
+        s.object_id for s in procedural_benchmark_sources(2)
+    ]
+    assert bench.n == len(bench.poses) == len(bench.trials.status)
+    for k in range(2):
+        rows = bench.object_index == k
+        assert 10 <= rows.sum() <= 14
+        assert set(bench.source[rows].tolist()) <= {0, 1, 2}
+    # Force-closure verdicts agree with the source of candidate pairs.
+    assert bench.fc_passed[bench.source == SOURCES.index("fc_pass")].all()
+    assert not bench.fc_passed[bench.source == SOURCES.index("fc_fail")].any()
+    # Every row carries a label; statuses are known codes; simulated rows have finite numbers.
+    assert set(bench.trials.status.tolist()) <= {s.value for s in TrialStatus}
+    ran = bench.trials.valid
+    assert np.isfinite(bench.trials.max_displacement[ran]).all()
+    assert (bench.trials.max_penetration[ran] < 1e-3).all()
+    assert (bench.trials.status != TrialStatus.UNSTABLE).all()
+    assert bench.objects[0].parts, "procedural parts are stored"
+    summary = bench.summary()
+    assert summary["pairs"] == bench.n
+    assert json.dumps(summary)  # JSON-ready
+
+
+def test_objects_rebuild_from_the_file(built: Path) -> None:
+    bench = read_benchmark(built / "benchmark.h5")
+    obj = bench.objects[0].load()
+    assert obj.object_id == bench.objects[0].object_id
+    assert len(obj.parts) == len(bench.objects[0].parts)
+
+
+def test_rerun_resumes_and_gives_the_same_bytes(built: Path, tmp_path: Path) -> None:
+    first = (built / "benchmark.h5").read_bytes()
+    manifest = read_manifest(built)
+    assert all(e["status"] == "ok" for e in manifest["entries"].values())
+    # Resume: drop one object's result, rebuild only that one.
+    copy = tmp_path / "copy"
+    copy.mkdir()
+    for rel in ["manifest.json", "objects"]:
+        src = built / rel
+        if src.is_dir():
+            (copy / rel).mkdir()
+            for f in src.iterdir():
+                (copy / rel / f.name).write_bytes(f.read_bytes())
+        else:
+            (copy / rel).write_bytes(src.read_bytes())
+    victim = next((copy / "objects").iterdir())
+    victim.unlink()
+    (copy / "objects" / ".stale.h5.tmp-x").write_bytes(b"partial")
+    build_benchmark(procedural_benchmark_sources(2), copy, SMALL, progress=False)
+    assert (copy / "benchmark.h5").read_bytes() == first
+    assert not list((copy / "objects").glob(".*.tmp-*"))
+
+
+def test_two_workers_give_the_same_bytes(built: Path, tmp_path: Path) -> None:
+    build_benchmark(procedural_benchmark_sources(2), tmp_path, SMALL, workers=2, progress=False)
+    assert (tmp_path / "benchmark.h5").read_bytes() == (built / "benchmark.h5").read_bytes()
+
+
+def test_other_parameters_refuse_to_resume(built: Path) -> None:
+    with pytest.raises(BenchmarkError, match="same parameters"):
+        build_benchmark(
+            procedural_benchmark_sources(2),
+            built,
+            BenchmarkParameters(n_grasps=60, n_passing=5, n_failing=4, n_random=4),
+            progress=False,
+        )
+
+
+def test_write_read_round_trip(built: Path, tmp_path: Path) -> None:
+    bench = read_benchmark(built / "benchmark.h5")
+    path = tmp_path / "again.h5"
+    write_benchmark(path, bench)
+    again = read_benchmark(path)
+    for name in ("object_index", "poses", "contact_points", "source", "fc_passed", "fc_loss"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(bench, name))
+    for name in TrialResults.ARRAY_FIELDS:
+        np.testing.assert_array_equal(getattr(again.trials, name), getattr(bench.trials, name))
+    assert path.read_bytes() == (built / "benchmark.h5").read_bytes()
+
+
+def _corrupt(src: Path, dst: Path, edit) -> Path:
+    dst.write_bytes(src.read_bytes())
+    with h5py.File(dst, "r+") as f:
+        edit(f)
+    return dst
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda f: f.attrs.__setitem__("format", "nope"), "expected format"),
+        (lambda f: f.attrs.__setitem__("schema_version", 99), "schema_version"),
+        (lambda f: f.__delitem__("sim/status"), "sim/status"),
+        (lambda f: f["grasps/object_index"].__setitem__(0, 7), "object_index"),
+        (lambda f: f["grasps/poses"].__setitem__((0, 0, 0, 0), np.nan), "finite"),
+        (lambda f: f["grasps/source"].__setitem__(0, 42), "source"),
+    ],
+)
+def test_malformed_files_are_rejected(built: Path, tmp_path: Path, edit, message: str) -> None:
+    path = _corrupt(built / "benchmark.h5", tmp_path / "bad.h5", edit)
+    with pytest.raises(BenchmarkError, match=message):
+        read_benchmark(path)
+
+
+def test_not_hdf5_is_rejected(tmp_path: Path) -> None:
+    path = tmp_path / "x.h5"
+    path.write_text("hello")
+    with pytest.raises(BenchmarkError, match="expected a dg16m benchmark"):
+        read_benchmark(path)
+
+
+def test_bad_parameters() -> None:
+    with pytest.raises(BenchmarkError, match="n_grasps"):
+        BenchmarkParameters(n_grasps=1)
+    with pytest.raises(BenchmarkError, match="mu"):
+        BenchmarkParameters(mu=-1.0)
+    with pytest.raises(BenchmarkError, match="limit"):
+        procedural_benchmark_sources(0)
+    # The scene's friction follows mu.
+    assert BenchmarkParameters(mu=0.5).scene.friction == 0.5
+
+
+def test_split_parsing(tmp_path: Path) -> None:
+    assert read_split("a, b,c") == ["a", "b", "c"]
+    split = tmp_path / "split.txt"
+    split.write_text("# objects\nmug_1\n\nbowl_2  # a comment\n")
+    assert read_split(str(split)) == ["mug_1", "bowl_2"]
+    with pytest.raises(BenchmarkError, match="expected object ids"):
+        read_split(" , ")
+
+
+def test_retarget_moves_contacts_to_the_panda_depth() -> None:
+    pose = np.eye(4)
+    moved = retarget_poses(pose[None], "robotiq_2f85")[0]
+    # A contact at the 2F-85's depth along +y lands at the Panda's depth after the move.
+    from dataset_gen.gripper import PANDA, ROBOTIQ_2F85
+
+    contact = pose[:3, 3] + ROBOTIQ_2F85.contact_depth * pose[:3, 1]
+    np.testing.assert_allclose(moved[:3, 3] + PANDA.contact_depth * moved[:3, 1], contact)
+
+
+def test_benchmark_from_user_files(tmp_path: Path) -> None:
+    """--meshes/--grasps: a generated dataset's files (meshes + DG16M files) as a user's own."""
+    sources = procedural_sources([("board", 3)])
+    generate_dataset(
+        sources,
+        tmp_path / "ds",
+        GenerationParameters(n_grasps=40, max_passing=5, max_failing=5),
+        progress=False,
+    )
+    items = file_benchmark_sources(tmp_path / "ds" / "meshes", tmp_path / "ds" / "grasps")
+    assert [i.object_id for i in items] == [sources[0].object_id]
+    bench = benchmark_object(items[0], SMALL)
+    assert set(bench.source.tolist()) <= {SOURCES.index("file_pass"), SOURCES.index("file_fail")}
+    assert bench.n <= 10
+    # The mesh has no parts: it was decomposed (CoACD) and the parts are stored.
+    assert bench.objects[0].parts
+    assert bench.objects[0].family == ""
+    with pytest.raises(BenchmarkError, match="expected grasp file"):
+        file_benchmark_sources(tmp_path / "ds" / "meshes", tmp_path / "ds" / "grasps", ["nope"])
+
+
+def test_cli_build_and_info(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert (
+        cli_main(["benchmark", "build", "--out", str(tmp_path), "--limit", "1", "--no-progress"])
+        == 0
+    )
+    out = capsys.readouterr().out
+    assert "force-closure passing pairs" in out
+    assert "benchmark.h5" in out
+    assert (
+        cli_main(
+            [
+                "benchmark",
+                "info",
+                str(tmp_path / "benchmark.h5"),
+                "--json",
+                "--plot",
+                str(tmp_path / "s.png"),
+            ]
+        )
+        == 0
+    )
+    summary = json.loads(capsys.readouterr().out.split("\nwrote")[0])
+    assert summary["objects"] == 1
+    assert "by_family" in summary
+    assert (tmp_path / "s.png").stat().st_size > 10_000
+    assert cli_main(["benchmark", "build", "--out", str(tmp_path), "--meshes", str(tmp_path)]) == 2
+    assert "expected both or neither" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not EMBEDDED_BENCHMARK.is_file(), reason="no shipped benchmark file")
+def test_shipped_benchmark_is_reproduced_by_a_rebuild() -> None:
+    shipped = read_benchmark(EMBEDDED_BENCHMARK)
+    assert len(shipped.objects) == 300
+    assert shipped.metadata["parameters"] == json.loads(
+        json.dumps(BenchmarkParameters().to_dict())
+    ), "the shipped file was built with the default parameters"
+    item = procedural_benchmark_sources(1)[0]
+    rebuilt = benchmark_object(item, BenchmarkParameters())
+    rows = shipped.object_rows(item.object_id)
+    for name in ("poses", "contact_points", "contact_normals", "source", "fc_passed", "fc_loss"):
+        np.testing.assert_array_equal(getattr(rebuilt, name), getattr(shipped, name)[rows])
+    for name in TrialResults.ARRAY_FIELDS:
+        np.testing.assert_array_equal(
+            getattr(rebuilt.trials, name), getattr(shipped.trials, name)[rows]
+        )
+    summary = shipped.summary()
+    assert summary["sim_success_rate_fc_passing"] > 2 * summary["sim_success_rate_random"]
+    assert summary["trials"]["max_penetration_m"] < 1e-3
+    assert summary["trials"]["unstable"] == 0
