@@ -20,6 +20,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "dataset_gen.verify_command",
     "dataset_gen.generate_command",
     "dg16m_env.benchmark_command",
+    "dg16m_env.sim_command",
 )
 """Modules that add subcommands, in the order they appear in ``dg16m --help``."""
 

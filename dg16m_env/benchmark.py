@@ -496,7 +496,7 @@ def _object_metadata(
     )
 
 
-def _sampled_pairs(
+def sampled_pairs(
     obj: GraspObject, params: BenchmarkParameters, rng: np.random.Generator
 ) -> dict[str, np.ndarray]:
     grasps = sample_antipodal_grasps(obj, n_grasps=params.n_grasps, mu=params.mu, rng=rng)
@@ -577,7 +577,7 @@ def benchmark_object(item: BenchmarkSource, params: BenchmarkParameters) -> Benc
     rows = (
         _file_pairs(item, params, rng)
         if item.grasp_file is not None
-        else _sampled_pairs(obj, params, rng)
+        else sampled_pairs(obj, params, rng)
     )
     scene = compile_scene(obj, params=params.scene, parts=parts)
     trials = run_trials(scene, rows["poses"], params.protocol)

@@ -57,13 +57,13 @@ PHASES: tuple[str, ...] = (
 )
 """Trial phases in order; :attr:`TrialResults.failing_phase` indexes this tuple (-1: none)."""
 
-_CONTROL_SPEC = (
+CONTROL_SPEC = (
     mujoco.mjtState.mjSTATE_CTRL
     | mujoco.mjtState.mjSTATE_XFRC_APPLIED
     | mujoco.mjtState.mjSTATE_MOCAP_POS
     | mujoco.mjtState.mjSTATE_MOCAP_QUAT
 )
-_STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
 class TrialError(Dg16mError, ValueError):
@@ -404,7 +404,7 @@ def schedule(scene: Scene, protocol: TrialProtocol) -> Schedule:
 def _control_layout(scene: Scene) -> tuple[int, dict[str, np.ndarray]]:
     """Size of a control vector and where ctrl / xfrc / mocap go in it (found by probing)."""
     model = scene.model
-    size = mujoco.mj_stateSize(model, _CONTROL_SPEC)
+    size = mujoco.mj_stateSize(model, CONTROL_SPEC)
     data = mujoco.MjData(model)
     probe = {
         "ctrl": data.ctrl,
@@ -418,7 +418,7 @@ def _control_layout(scene: Scene) -> tuple[int, dict[str, np.ndarray]]:
             other[...] = 0.0
         array.reshape(-1)[:] = np.arange(1, array.size + 1)
         vec = np.zeros(size)
-        mujoco.mj_getState(model, data, vec, _CONTROL_SPEC)
+        mujoco.mj_getState(model, data, vec, CONTROL_SPEC)
         where = np.zeros(array.size, dtype=np.int64)
         for value in range(1, array.size + 1):
             (hits,) = np.nonzero(vec == value)
@@ -451,8 +451,8 @@ def initial_state(scene: Scene) -> np.ndarray:
     """(S,) full physics state at the start of a trial: object at rest at the origin, fingers
     open."""
     data = _initial_data(scene)
-    state = np.zeros(mujoco.mj_stateSize(scene.model, _STATE_SPEC))
-    mujoco.mj_getState(scene.model, data, state, _STATE_SPEC)
+    state = np.zeros(mujoco.mj_stateSize(scene.model, STATE_SPEC))
+    mujoco.mj_getState(scene.model, data, state, STATE_SPEC)
     return state
 
 
@@ -476,7 +476,7 @@ def simulate(
         data,
         initial_state(scene)[None],
         controls,
-        control_spec=_CONTROL_SPEC,
+        control_spec=CONTROL_SPEC,
         nstep=plan.nstep,
     )
     return states, sensors, plan
@@ -487,13 +487,13 @@ def simulate(
 # --------------------------------------------------------------------------------------------
 
 
-def _rotation_deg(quat: np.ndarray, ref: np.ndarray) -> np.ndarray:
+def rotation_deg(quat: np.ndarray, ref: np.ndarray) -> np.ndarray:
     """Angle (degrees) between unit quaternions ``quat`` (..., 4) and ``ref`` (..., 4)."""
     dot = np.abs(np.sum(quat * ref, axis=-1) / np.linalg.norm(quat, axis=-1))
     return np.degrees(2.0 * np.arccos(np.clip(dot, 0.0, 1.0)))
 
 
-def _quat_to_matrix(quat: np.ndarray) -> np.ndarray:
+def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
     """(..., 3, 3) rotation matrices of (..., 4) quaternions (w, x, y, z), normalised here."""
     q = quat / np.linalg.norm(quat, axis=-1, keepdims=True)
     w, x, y, z = np.moveaxis(q, -1, 0)
@@ -514,7 +514,7 @@ def grasp_centres(scene: Scene, grasps: np.ndarray) -> np.ndarray:
     return grasps[:, :, :3, 3] + depth * grasps[:, :, :3, 1]
 
 
-def _sensor_slices(scene: Scene) -> tuple[int, int, np.ndarray]:
+def sensor_slices(scene: Scene) -> tuple[int, int, np.ndarray]:
     model = scene.model
     sensor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, OBJECT_CONTACTS_SENSOR)
     start = int(model.sensor_adr[sensor])
@@ -552,14 +552,14 @@ def analyse(
     pos = states[:, :, q0 : q0 + 3]
     quat = states[:, :, q0 + 3 : q0 + 7]
     vel = states[:, :, 1 + nq : 1 + nq + 3]
-    count_at, dist_at, hand_at = _sensor_slices(scene)
+    count_at, dist_at, hand_at = sensor_slices(scene)
 
     close = plan.close_end
     if anchors is None:  # the object's origin
         anchors = np.zeros((n, 1, 3))
     anchors = np.asarray(anchors, dtype=np.float64)
     # Material points at the anchors: at the start (close phase) and at the end of close (after).
-    rot = _quat_to_matrix(quat)  # (N, T, 3, 3)
+    rot = quat_to_matrix(quat)  # (N, T, 3, 3)
     ref_rot, ref_pos = rot[:, close - 1], pos[:, close - 1]
     body_points = np.einsum("nji,nkj->nki", ref_rot, anchors - ref_pos[:, None])
     during = np.einsum("ntij,nkj->ntki", rot[:, :close], anchors) + pos[:, :close, None]
@@ -569,8 +569,8 @@ def analyse(
     identity = np.array([1.0, 0.0, 0.0, 0.0])
     rotation = np.concatenate(
         [
-            _rotation_deg(quat[:, :close], identity),
-            _rotation_deg(quat[:, close:], quat[:, close - 1 : close]),
+            rotation_deg(quat[:, :close], identity),
+            rotation_deg(quat[:, close:], quat[:, close - 1 : close]),
         ],
         axis=1,
     )
@@ -657,7 +657,7 @@ def run_trials(
         from tqdm import tqdm
 
         iterator = tqdm(batches, unit="batch", desc=f"trials {scene.object_id}")
-    segments = _segments(plan)
+    segments = trial_segments(plan)
     for rows in iterator:
         controls = trial_controls(scene, grasps[rows], plan)
         anchors = grasp_centres(scene, grasps[rows])
@@ -671,7 +671,7 @@ def run_trials(
                 data,
                 state[active],
                 controls[active, seg],
-                control_spec=_CONTROL_SPEC,
+                control_spec=CONTROL_SPEC,
                 nstep=seg.stop - seg.start,
             )
             states[active, seg] = seg_states
@@ -696,7 +696,7 @@ def run_trials(
     return results
 
 
-def _segments(plan: Schedule) -> list[slice]:
+def trial_segments(plan: Schedule) -> list[slice]:
     """Step ranges run by one ``rollout`` call each; failed trials stop between them: close and
     gravity, the six forces, the six torques."""
     bounds = [

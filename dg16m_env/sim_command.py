@@ -1,0 +1,433 @@
+"""``dg16m sim``: run the MuJoCo trial protocol on dual grasps and replay one trial as pictures.
+
+``dg16m sim replay`` renders one trial (a benchmark row, or a pair of a DG16M grasp file) to a PNG
+strip or an animated GIF (:mod:`dg16m_env.replay`); ``dg16m sim run`` runs the trials of a DG16M
+grasp file's pairs and compares the success rates of its force-closure passing and failing pairs.
+
+Heavy imports (MuJoCo, the benchmark, CoACD) happen inside the handlers so that ``dg16m --help``
+stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import textwrap
+from pathlib import Path
+from typing import Any
+
+from dataset_gen.errors import Dg16mError
+
+
+class SimCommandError(Dg16mError, ValueError):
+    """Bad ``dg16m sim`` arguments (row or index out of range, missing or conflicting options)."""
+
+
+SIM_EXAMPLES = (
+    "  dg16m sim replay runs/bench/benchmark.h5 --row 12 --out row12.png\n"
+    "  dg16m sim run runs/dataset/grasps/table-0000001.h5 --procedural table-0000001 --limit 50\n"
+)
+
+REPLAY_EXAMPLES = (
+    "  # a benchmark row (procedural objects need nothing else) as a strip of 8 frames\n"
+    "  dg16m sim replay runs/bench/benchmark.h5 --row 12 --out row12.png\n"
+    "  # the same trial as an animated GIF of 40 frames, smaller, seen from another side\n"
+    "  dg16m sim replay runs/bench/benchmark.h5 --row 12 --out row12.gif --size 320x240 \\\n"
+    "      --frames 40 --view 45,-15\n"
+    "  # a benchmark built from your meshes: give the mesh folder it was built from\n"
+    "  dg16m sim replay runs/mybench/benchmark.h5 --row 3 --meshes my_meshes --out row3.png\n"
+    "  # pair 7 of a DG16M grasp file, on a procedural object or on a mesh (CoACD parts, cached)\n"
+    "  dg16m sim replay --grasps runs/dataset/grasps/table-0000001.h5 --index 7 \\\n"
+    "      --procedural table-0000001 --out pair7.png\n"
+    "  dg16m sim replay --grasps ../shared/data/real/dg16m_airplane.h5 --index 0 \\\n"
+    "      --mesh ../shared/data/real/dg16m_airplane.obj --out airplane0.png\n"
+)
+
+RUN_EXAMPLES = (
+    "  dg16m sim run runs/dataset/grasps/table-0000001.h5 --procedural table-0000001\n"
+    "  dg16m sim run ../shared/data/real/dg16m_airplane.h5 \\\n"
+    "      --mesh ../shared/data/real/dg16m_airplane.obj --limit 50 --json\n"
+)
+
+
+def _add(subparsers, name: str, help_text: str, description: str, examples: str):
+    return subparsers.add_parser(
+        name,
+        help=help_text,
+        description=textwrap.fill(description, 88),
+        epilog="examples:\n" + examples,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+
+
+def _object_options(parser, *, required: bool) -> None:
+    group = parser.add_mutually_exclusive_group(required=required)
+    group.add_argument("--mesh", type=Path, help="the grasp file's object mesh")
+    group.add_argument(
+        "--procedural", metavar="ID", help="a procedural object id, e.g. table-0000001"
+    )
+    parser.add_argument(
+        "--gripper",
+        default=None,
+        help="gripper frame of the file's poses: panda or robotiq_2f85 (default: the file's "
+        "recorded gripper, else robotiq_2f85 as in the release); poses are moved to the Panda "
+        "hand that is simulated",
+    )
+    parser.add_argument(
+        "--mass", type=float, default=6.0, help="object mass in kg (default: 6, the release value)"
+    )
+
+
+def register(subparsers) -> None:
+    """Add ``dg16m sim`` (``replay``, ``run``)."""
+    sim = _add(
+        subparsers,
+        "sim",
+        "Simulate dual grasps in MuJoCo: replay one trial as pictures, or run a grasp file.",
+        "Simulate dual grasps with the trial protocol of dg16m_env.trial (two floating Panda "
+        "hands close on the object, then gravity and twelve disturbances; success when the "
+        "object stays put relative to the hands).",
+        SIM_EXAMPLES,
+    )
+    actions = sim.add_subparsers(dest="action", metavar="ACTION", required=True)
+
+    replay = _add(
+        actions,
+        "replay",
+        "Render one trial (a benchmark row or a pair of a DG16M file) to a PNG strip or a GIF.",
+        "Replay one trial step by step and render it offscreen: frames spread evenly over the "
+        "part of the trial that decides the verdict (all of it when the grasp held, up to the end "
+        "of the failing phase when it failed), plus the end of the close phase, the first step "
+        "out of bounds and the end of the failing phase. Each frame is captioned with time, "
+        "phase and slip (the object's displacement at the hands' grasp centres). The object is "
+        "drawn translucent; hand 0 is orange, hand 1 blue, contacts are red. Prints the stored "
+        "label and the replayed outcome. Rendering needs MUJOCO_GL=egl (default) or osmesa.",
+        REPLAY_EXAMPLES,
+    )
+    row = replay.add_argument_group("a benchmark row")
+    row.add_argument(
+        "benchmark", nargs="?", type=Path, metavar="BENCHMARK.h5", help="a benchmark file"
+    )
+    row.add_argument("--row", type=int, default=None, metavar="N", help="the row to replay")
+    row.add_argument(
+        "--meshes",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="mesh folder of a benchmark built from meshes",
+    )
+    pair = replay.add_argument_group("or a pair of a DG16M grasp file")
+    pair.add_argument("--grasps", type=Path, default=None, metavar="FILE.h5", help="the file")
+    pair.add_argument("--index", type=int, default=None, metavar="I", help="the pair to replay")
+    _object_options(pair, required=False)
+    output = replay.add_argument_group("output")
+    output.add_argument(
+        "--out", type=Path, required=True, help="strip.png (frames side by side) or anim.gif"
+    )
+    output.add_argument(
+        "--frames",
+        type=int,
+        default=None,
+        metavar="N",
+        help="evenly spread frames (default: 8 for PNG, 40 for GIF)",
+    )
+    output.add_argument("--size", default="480x360", help="frame size WxH (default: 480x360)")
+    output.add_argument(
+        "--view",
+        default=None,
+        metavar="AZ,EL",
+        help="camera azimuth,elevation in degrees (default: 135,-25)",
+    )
+    output.add_argument("--fps", type=float, default=10.0, help="GIF frame rate (default: 10)")
+    replay.set_defaults(handler=_replay)
+
+    run = _add(
+        actions,
+        "run",
+        "Run the trial protocol on a DG16M file's pairs; success of passing vs failing pairs.",
+        "Run the MuJoCo trial on the force-closure passing and failing pairs of a DG16M grasp "
+        "file and print a summary (trials, invalid, success, failing phases, penetration) and "
+        "the simulated success rate of the passing and of the failing pairs (valid trials).",
+        RUN_EXAMPLES,
+    )
+    run.add_argument("file", type=Path, metavar="FILE.h5", help="a DG16M grasp file")
+    _object_options(run, required=True)
+    run.add_argument(
+        "--limit",
+        type=int,
+        default=None,
+        metavar="K",
+        help="at most K passing and K failing pairs (seeded sample; default: all)",
+    )
+    run.add_argument("--seed", type=int, default=0, help="seed of the --limit sample")
+    run.add_argument("--json", action="store_true", help="print JSON instead of text")
+    run.set_defaults(handler=_run)
+
+
+# --------------------------------------------------------------------------------------------
+# Helpers
+# --------------------------------------------------------------------------------------------
+
+
+def _parse_size(text: str) -> tuple[int, int]:
+    from dg16m_env.replay import check_size
+
+    parts = text.lower().split("x")
+    try:
+        width, height = (int(p) for p in parts)
+    except ValueError:
+        raise SimCommandError(
+            f"--size: expected WxH in pixels like 480x360, found {text!r}"
+        ) from None
+    try:
+        return check_size(width, height)
+    except Dg16mError as exc:
+        raise SimCommandError(f"--size {text}: {exc}") from None
+
+
+def _parse_view(text: str | None) -> dict[str, float] | None:
+    if text is None:
+        return None
+    try:
+        azimuth, elevation = (float(p) for p in text.split(","))
+    except ValueError:
+        raise SimCommandError(
+            f"--view: expected azimuth,elevation in degrees like 135,-25, found {text!r}"
+        ) from None
+    return {"azimuth": azimuth, "elevation": elevation}
+
+
+def _output_kind(path: Path) -> str:
+    kind = path.suffix.lower()
+    if kind not in (".png", ".gif"):
+        raise SimCommandError(f"--out: expected a .png or .gif path, found {str(path)!r}")
+    return kind
+
+
+def _check_range(option: str, value: int | None, n: int, what: str) -> int:
+    if value is None:
+        raise SimCommandError(f"{option}: expected the {what} to replay, found none given")
+    if not 0 <= value < n:
+        raise SimCommandError(f"{option}: expected a {what} in [0, {n}), found {value}")
+    return value
+
+
+def _grasp_object(args: argparse.Namespace, object_scale: float):
+    """The GraspObject and its convex parts for ``--mesh`` / ``--procedural``."""
+    if args.procedural is not None:
+        from dataset_gen.procedural import make_procedural_object, parse_object_id
+
+        family, seed = parse_object_id(args.procedural)
+        obj = make_procedural_object(family, seed, mass=args.mass)
+        return obj, obj.parts
+    from dataset_gen.objects import load_object
+    from dg16m_env.decomposition import object_parts
+
+    obj = load_object(args.mesh, scale=object_scale, mass=args.mass)
+    print(
+        f"convex parts of {args.mesh} (CoACD; cached after the first run) ...",
+        file=sys.stderr,
+        flush=True,
+    )
+    return obj, object_parts(obj)
+
+
+def _file_poses(data, args: argparse.Namespace, rows):
+    from dg16m_env.benchmark import retarget_poses
+
+    gripper = args.gripper or data.metadata.get("gripper", "robotiq_2f85")
+    return retarget_poses(data.grasps[rows], gripper)
+
+
+def _write(replay, args: argparse.Namespace, title: str) -> None:
+    from dg16m_env.replay import write_gif, write_strip
+
+    if args.out.suffix.lower() == ".gif":
+        write_gif(replay.frames, args.out, fps=args.fps, captions=replay.captions)
+    else:
+        write_strip(replay.frames, replay.captions, args.out, title=title)
+    height, width = replay.frames[0].shape[:2]
+    count = len(replay.frames)
+    print(f"wrote {args.out} ({count} frame{'s' if count != 1 else ''}, {width}x{height})")
+
+
+# --------------------------------------------------------------------------------------------
+# Handlers
+# --------------------------------------------------------------------------------------------
+
+
+def _replay(args: argparse.Namespace) -> int:
+    kind = _output_kind(args.out)
+    width, height = _parse_size(args.size)
+    camera = _parse_view(args.view)
+    n_frames = args.frames if args.frames is not None else (40 if kind == ".gif" else 8)
+    if n_frames < 1:
+        raise SimCommandError(f"--frames: expected an integer >= 1, found {n_frames}")
+    if (args.benchmark is None) == (args.grasps is None):
+        raise SimCommandError(
+            "expected either BENCHMARK.h5 with --row or --grasps FILE.h5 with --index, found "
+            + ("both" if args.benchmark is not None else "neither")
+        )
+    if args.benchmark is not None:
+        stray = [
+            name
+            for name, value in (
+                ("--index", args.index),
+                ("--mesh", args.mesh),
+                ("--procedural", args.procedural),
+            )
+            if value is not None
+        ]
+        if stray:
+            raise SimCommandError(
+                f"{', '.join(stray)}: expected only with --grasps, found with BENCHMARK.h5"
+            )
+        return _replay_benchmark(args, n_frames, width, height, camera)
+    if args.row is not None or args.meshes is not None:
+        raise SimCommandError(
+            "--row/--meshes: expected only with BENCHMARK.h5, found with --grasps"
+        )
+    if args.mesh is None and args.procedural is None:
+        raise SimCommandError(
+            "--grasps: expected its object with --mesh MESH or --procedural ID, found neither"
+        )
+    return _replay_grasps(args, n_frames, width, height, camera)
+
+
+def _replay_benchmark(args, n_frames: int, width: int, height: int, camera) -> int:
+    from dg16m_env.benchmark import SOURCES, read_benchmark
+    from dg16m_env.replay import describe_result, replay_trial
+    from dg16m_env.scene import SceneParameters, compile_scene
+
+    bench = read_benchmark(args.benchmark)
+    row = _check_range("--row", args.row, bench.n, "row")
+    item = bench.objects[int(bench.object_index[row])]
+    if not item.family and args.meshes is None:
+        raise SimCommandError(
+            f"{item.object_id}: expected --meshes DIR holding {item.file!r} (the benchmark's "
+            "object is a mesh), found none given"
+        )
+    obj = item.load(args.meshes)
+    stored = bench.metadata.get("parameters", {}).get("scene", {})
+    params = SceneParameters(
+        **{k: tuple(v) if isinstance(v, list) else v for k, v in stored.items()}
+    )
+    scene = compile_scene(obj, params=params, parts=item.parts)
+    replay = replay_trial(
+        scene,
+        bench.poses[row],
+        bench.trials.protocol,
+        n_frames=n_frames,
+        width=width,
+        height=height,
+        camera=camera,
+    )
+    verdict = "pass" if bench.fc_passed[row] else "fail"
+    print(
+        f"{args.benchmark} row {row}: object {item.object_id}, source "
+        f"{SOURCES[int(bench.source[row])]} (force closure {verdict}, loss "
+        f"{bench.fc_loss[row]:.3g} N)"
+    )
+    label = describe_result(bench.trials, row)
+    print(f"  stored:   {label}")
+    print(f"  replayed: {replay.trial.describe()}")
+    same = int(bench.trials.status[row]) == int(replay.trial.results.status[0]) and int(
+        bench.trials.failing_phase[row]
+    ) == int(replay.trial.results.failing_phase[0])
+    if not same:
+        print(
+            "  note: the replay differs from the stored label (a benchmark built with another "
+            "dg16m or MuJoCo version?)"
+        )
+    _write(replay, args, f"{item.object_id}, row {row}: {replay.trial.describe()}")
+    return 0
+
+
+def _replay_grasps(args, n_frames: int, width: int, height: int, camera) -> int:
+    from dataset_gen.io import read_dg16m
+    from dg16m_env.replay import replay_trial
+    from dg16m_env.scene import compile_scene
+
+    data = read_dg16m(args.grasps)
+    index = _check_range("--index", args.index, data.n, "pair index")
+    obj, parts = _grasp_object(args, data.object_scale)
+    scene = compile_scene(obj, parts=parts)
+    pose = _file_poses(data, args, [index])[0]
+    replay = replay_trial(scene, pose, n_frames=n_frames, width=width, height=height, camera=camera)
+    verdict = "pass" if data.passed[index] else "fail"
+    print(
+        f"{args.grasps} pair {index}: object {obj.object_id} (force closure {verdict}, loss "
+        f"{data.loss_values[index]:.3g} N)"
+    )
+    print(f"  replayed: {replay.trial.describe()}")
+    _write(replay, args, f"{obj.object_id}, pair {index}: {replay.trial.describe()}")
+    return 0
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    return value
+
+
+def _run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from dataset_gen.io import read_dg16m
+    from dg16m_env.scene import compile_scene
+    from dg16m_env.trial import run_trials
+
+    if args.limit is not None and args.limit < 1:
+        raise SimCommandError(f"--limit: expected an integer >= 1, found {args.limit}")
+    data = read_dg16m(args.file)
+    rng = np.random.default_rng(args.seed)
+    chosen = []
+    for rows in (np.sort(data.passing_indices), np.sort(data.failed_indices)):
+        if args.limit is not None and rows.size > args.limit:
+            rows = np.sort(rng.choice(rows, size=args.limit, replace=False))
+        chosen.append(rows)
+    passing, failing = chosen
+    rows = np.concatenate([passing, failing])
+    if rows.size == 0:
+        raise SimCommandError(f"{args.file}: expected passing or failing pairs, found none")
+    obj, parts = _grasp_object(args, data.object_scale)
+    scene = compile_scene(obj, parts=parts)
+    results = run_trials(
+        scene, _file_poses(data, args, rows), progress=not args.json and sys.stderr.isatty()
+    )
+    groups = {
+        "passing": results.select(np.arange(passing.size)),
+        "failing": results.select(np.arange(passing.size, rows.size)),
+    }
+    rates = {}
+    for name, part in groups.items():
+        valid = int(part.valid.sum())
+        rates[name] = {
+            "pairs": part.n,
+            "valid": valid,
+            "success_rate": float(part.success.sum() / valid) if valid else None,
+        }
+    summary = results.summary()
+    if args.json:
+        payload = {
+            "file": str(args.file),
+            "object": obj.object_id,
+            "summary": _finite(summary),
+            "force_closure": rates,
+        }
+        print(json.dumps(payload, indent=2, sort_keys=True))
+        return 0
+    print(
+        f"{args.file}: {rows.size} pairs on {obj.object_id} ({passing.size} passing, "
+        f"{failing.size} failing force closure)"
+    )
+    for key, value in summary.items():
+        print(f"  {key:22s} {value}")
+    for name, rate in rates.items():
+        shown = "n/a" if rate["success_rate"] is None else f"{rate['success_rate']:.3f}"
+        print(f"  sim success, fc {name}: {shown} ({rate['valid']} valid of {rate['pairs']} pairs)")
+    return 0

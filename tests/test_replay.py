@@ -1,0 +1,316 @@
+"""Replaying a trial (dg16m_env.replay) and ``dg16m sim``: stepped trials agree with the C rollout,
+frames are pictures of the requested size, strips and GIFs are written, the CLI reports errors."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+from PIL import Image
+
+import dataset_gen.cli
+from dataset_gen.errors import Dg16mError
+from dg16m_env import replay as replay_module
+from dg16m_env.benchmark import (
+    Benchmark,
+    BenchmarkParameters,
+    build_benchmark,
+    procedural_benchmark_sources,
+    read_benchmark,
+)
+from dg16m_env.replay import (
+    RenderError,
+    ReplayError,
+    frame_steps,
+    make_renderer,
+    render_model,
+    step_trial,
+    trial_frames,
+    write_gif,
+    write_strip,
+)
+from dg16m_env.scene import Scene, SceneParameters, compile_scene
+from dg16m_env.sim_command import register
+from dg16m_env.trial import TrialStatus, run_trials, simulate
+
+
+@pytest.fixture(scope="module")
+def bench_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("bench")
+    params = BenchmarkParameters(n_grasps=40, n_passing=3, n_failing=2, n_random=2)
+    return build_benchmark(procedural_benchmark_sources(1), out, params, progress=False)
+
+
+@pytest.fixture(scope="module")
+def bench(bench_path: Path) -> Benchmark:
+    return read_benchmark(bench_path)
+
+
+@pytest.fixture(scope="module")
+def scene(bench: Benchmark) -> Scene:
+    stored = bench.metadata["parameters"]["scene"]
+    params = SceneParameters(
+        **{k: tuple(v) if isinstance(v, list) else v for k, v in stored.items()}
+    )
+    item = bench.objects[0]
+    return compile_scene(item.load(), params=params, parts=item.parts)
+
+
+@pytest.fixture(scope="module")
+def can_render(scene: Scene) -> None:
+    try:
+        make_renderer(render_model(scene, 64, 48), 48, 64).close()
+    except RenderError as exc:
+        pytest.skip(f"no offscreen OpenGL here: {exc}")
+
+
+def _ran_row(bench: Benchmark, failed: bool | None = None) -> int:
+    status = bench.trials.status
+    rows = np.flatnonzero(status != TrialStatus.INVALID)
+    if failed is not None:
+        rows = rows[(status[rows] == TrialStatus.FAILED) == failed]
+    if rows.size == 0:
+        pytest.skip("the tiny benchmark has no such row")
+    return int(rows[0])
+
+
+# --------------------------------------------------------------------------------------------
+# Stepping (no rendering)
+# --------------------------------------------------------------------------------------------
+
+
+def test_stepped_trials_match_run_trials(scene: Scene, bench: Benchmark) -> None:
+    protocol = bench.trials.protocol
+    rerun = run_trials(scene, bench.poses, protocol)
+    for row in range(bench.n):
+        stepped = step_trial(scene, bench.poses[row], protocol)
+        assert stepped.results.status[0] == rerun.status[row] == bench.trials.status[row]
+        assert stepped.results.failing_phase[0] == rerun.failing_phase[row]
+        assert stepped.results.invalid_reason[0] == rerun.invalid_reason[row]
+        # run_trials restarts the rollout between segments (warm start dropped): close, not equal
+        np.testing.assert_allclose(
+            stepped.results.max_displacement[0], rerun.max_displacement[row], atol=1e-5
+        )
+
+
+def test_stepping_equals_one_continuous_rollout(scene: Scene, bench: Benchmark) -> None:
+    row = _ran_row(bench)
+    stepped = step_trial(scene, bench.poses[row], bench.trials.protocol)
+    states, _, plan = simulate(scene, bench.poses[row : row + 1], bench.trials.protocol)
+    assert stepped.states.shape == (plan.nstep + 1, states.shape[2])
+    np.testing.assert_array_equal(stepped.states[1:], states[0])
+    assert stepped.slip[0] == 0.0
+    assert np.nanmax(stepped.slip[: stepped.end + 1]) == pytest.approx(
+        stepped.results.max_displacement[0]
+    )
+
+
+def test_frame_steps_include_key_steps(scene: Scene, bench: Benchmark) -> None:
+    row = _ran_row(bench, failed=True)
+    stepped = step_trial(scene, bench.poses[row], bench.trials.protocol)
+    steps = frame_steps(stepped, 5)
+    assert steps[0] == 0
+    assert steps[-1] == stepped.end < stepped.plan.nstep
+    assert stepped.first_out in steps
+    if stepped.plan.close_end <= stepped.end:
+        assert stepped.plan.close_end in steps
+    with pytest.raises(ReplayError):
+        frame_steps(stepped, 0)
+
+
+def test_renderer_failure_is_a_render_error(scene: Scene, monkeypatch: pytest.MonkeyPatch) -> None:
+    def broken(*args, **kwargs):
+        raise mujoco.FatalError("an OpenGL platform library has not been loaded")
+
+    monkeypatch.setattr(replay_module.mujoco, "Renderer", broken)
+    with pytest.raises(RenderError, match="MUJOCO_GL=egl or MUJOCO_GL=osmesa") as info:
+        make_renderer(scene.model, 48, 64)
+    assert isinstance(info.value, Dg16mError)
+
+
+def test_write_strip_rejects_mismatched_captions(tmp_path: Path) -> None:
+    with pytest.raises(ReplayError, match="one per frame"):
+        write_strip([np.zeros((20, 30, 3), np.uint8)], ["a", "b"], tmp_path / "s.png")
+    assert not (tmp_path / "s.png").exists()
+
+
+# --------------------------------------------------------------------------------------------
+# Rendering and files
+# --------------------------------------------------------------------------------------------
+
+
+def test_frames_have_the_size_and_are_pictures(
+    can_render: None, scene: Scene, bench: Benchmark
+) -> None:
+    row = _ran_row(bench, failed=True)
+    frames, captions = trial_frames(
+        scene, bench.poses[row], bench.trials.protocol, n_frames=4, width=160, height=120
+    )
+    assert len(frames) == len(captions) >= 4
+    for frame in frames:
+        assert frame.shape == (120, 160, 3)
+        assert frame.dtype == np.uint8
+        assert frame.std() > 0
+    assert captions[0].startswith("t=0.00 s  close  slip 0.0 mm")
+    assert "slip" in captions[-1]
+    assert " mm" in captions[-1]
+    assert not np.array_equal(frames[0], frames[-1])  # the object moved
+
+
+def test_invalid_grasp_gives_one_frame(can_render: None, scene: Scene, bench: Benchmark) -> None:
+    rows = np.flatnonzero(bench.trials.status == TrialStatus.INVALID)
+    if rows.size == 0:
+        pytest.skip("the tiny benchmark has no invalid row")
+    frames, captions = trial_frames(scene, bench.poses[rows[0]], width=64, height=48)
+    assert len(frames) == 1
+    assert "invalid" in captions[0]
+
+
+def test_strip_and_gif_are_written(tmp_path: Path) -> None:
+    rng = np.random.default_rng(0)
+    frames = [rng.integers(0, 255, (48, 64, 3), dtype=np.uint8) for _ in range(6)]
+    captions = [f"t={i / 10:.2f} s  close  slip 0.0 mm" for i in range(6)]
+    strip = write_strip(frames, captions, tmp_path / "strip.png", title="row 0")
+    with Image.open(strip) as image:
+        assert image.format == "PNG"
+        assert image.width >= 4 * 64
+        assert image.height >= 2 * 48
+    gif = write_gif(frames, tmp_path / "anim.gif", fps=5, captions=captions)
+    with Image.open(gif) as image:
+        assert image.format == "GIF"
+        assert image.n_frames == 6
+        assert image.size[0] == 64
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["anim.gif", "strip.png"]
+
+
+# --------------------------------------------------------------------------------------------
+# Command line
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def with_sim(monkeypatch: pytest.MonkeyPatch) -> None:
+    modules = dataset_gen.cli.COMMAND_MODULES
+    if "dg16m_env.sim_command" not in modules:
+        monkeypatch.setattr(dataset_gen.cli, "COMMAND_MODULES", (*modules, "dg16m_env.sim_command"))
+
+
+@pytest.mark.parametrize("argv", [["sim"], ["sim", "replay"], ["sim", "run"]])
+def test_help_has_examples(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    parser = argparse.ArgumentParser(prog="dg16m")
+    register(parser.add_subparsers(dest="command"))
+    with pytest.raises(SystemExit) as info:
+        parser.parse_args([*argv, "--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    assert "examples:" in out
+    assert "dg16m " + " ".join(argv) in out
+
+
+def test_cli_replay_writes_a_strip(
+    with_sim: None,
+    can_render: None,
+    bench_path: Path,
+    bench: Benchmark,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    row = _ran_row(bench)
+    out = tmp_path / "strip.png"
+    argv = ["sim", "replay", str(bench_path), "--row", str(row), "--out", str(out)]
+    assert dataset_gen.cli.main([*argv, "--frames", "3", "--size", "96x72"]) == 0
+    printed = capsys.readouterr().out
+    assert "stored:" in printed
+    assert "replayed:" in printed
+    assert "note:" not in printed
+    with Image.open(out) as image:
+        assert image.format == "PNG"
+        assert image.width >= 3 * 96
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--row", "999"], "expected a row in [0, 7), found 999"),
+        (["--row", "-1"], "expected a row in [0, 7), found -1"),
+        (["--row", "0", "--size", "5x5"], "--size 5x5"),
+        (["--row", "0", "--index", "1"], "--index: expected only with --grasps"),
+        (["--row", "0", "--frames", "0"], "--frames: expected an integer >= 1"),
+    ],
+)
+def test_cli_replay_bad_input_exits_2(
+    with_sim: None,
+    bench_path: Path,
+    bench: Benchmark,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    extra: list[str],
+    message: str,
+) -> None:
+    message = message.replace("[0, 7)", f"[0, {bench.n})")
+    argv = ["sim", "replay", str(bench_path), "--out", str(tmp_path / "x.png"), *extra]
+    assert dataset_gen.cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err
+    assert err.count("\n") == 1
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_cli_replay_rejects_other_suffixes(
+    with_sim: None, bench_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["sim", "replay", str(bench_path), "--row", "0", "--out", str(tmp_path / "x.jpg")]
+    assert dataset_gen.cli.main(argv) == 2
+    assert "expected a .png or .gif path" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def grasp_file(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    from dataset_gen.generate import GenerationParameters, generate_dataset, procedural_sources
+    from dataset_gen.procedural import benchmark_specs
+
+    out = tmp_path_factory.mktemp("dataset")
+    sources = procedural_sources(benchmark_specs()[:1])
+    generate_dataset(sources, out, GenerationParameters(n_grasps=40), progress=False)
+    object_id = sources[0].object_id
+    return out / "grasps" / f"{object_id}.h5", object_id
+
+
+def test_cli_replay_a_grasp_file_pair(
+    with_sim: None,
+    can_render: None,
+    grasp_file: tuple[Path, str],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    path, object_id = grasp_file
+    out = tmp_path / "pair.gif"
+    argv = ["sim", "replay", "--grasps", str(path), "--index", "0", "--procedural", object_id]
+    assert dataset_gen.cli.main([*argv, "--out", str(out), "--frames", "3", "--size", "64x48"]) == 0
+    assert "replayed:" in capsys.readouterr().out
+    with Image.open(out) as image:
+        assert image.format == "GIF"
+        assert image.n_frames >= 3
+    bad = ["sim", "replay", "--grasps", str(path), "--index", "99999", "--procedural", object_id]
+    assert dataset_gen.cli.main([*bad, "--out", str(out)]) == 2
+    assert "expected a pair index in [0, " in capsys.readouterr().err
+
+
+def test_cli_run_reports_passing_and_failing(
+    with_sim: None, grasp_file: tuple[Path, str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    import json
+
+    path, object_id = grasp_file
+    argv = ["sim", "run", str(path), "--procedural", object_id, "--limit", "3", "--json"]
+    assert dataset_gen.cli.main(argv) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["object"] == object_id
+    assert payload["summary"]["trials"] == sum(
+        v["pairs"] for v in payload["force_closure"].values()
+    )
+    assert set(payload["force_closure"]) == {"passing", "failing"}
+    assert dataset_gen.cli.main([*argv[:5], "--limit", "0"]) == 2
