@@ -24,7 +24,9 @@ demo: $(STAMP)
 	$(BIN)/dg16m objects make --count 20 --seed 0 --out $(DEMO)/objects
 	$(BIN)/dg16m objects show $(DEMO)/objects --out $(DEMO)/objects.png --limit 20
 	$(BIN)/dg16m grippers
-	@echo "demo outputs in $(DEMO)/: objects/ (meshes, parts, manifest.json) and objects.png"
+	$(BIN)/dg16m benchmark info --plot $(DEMO)/benchmark.png
+	$(BIN)/dg16m sim replay --row 1 --out $(DEMO)/replay.png
+	@echo "demo outputs in $(DEMO)/: objects/ (meshes, parts, manifest.json), objects.png, benchmark.png, replay.png"
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

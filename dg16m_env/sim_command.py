@@ -31,6 +31,8 @@ SIM_EXAMPLES = (
 )
 
 REPLAY_EXAMPLES = (
+    "  # row 0 of the benchmark shipped with dg16m\n"
+    "  dg16m sim replay --row 0 --out row0.png\n"
     "  # a benchmark row (procedural objects need nothing else) as a strip of 8 frames\n"
     "  dg16m sim replay runs/bench/benchmark.h5 --row 12 --out row12.png\n"
     "  # the same trial as an animated GIF of 40 frames, smaller, seen from another side\n"
@@ -108,7 +110,11 @@ def register(subparsers) -> None:
     )
     row = replay.add_argument_group("a benchmark row")
     row.add_argument(
-        "benchmark", nargs="?", type=Path, metavar="BENCHMARK.h5", help="a benchmark file"
+        "benchmark",
+        nargs="?",
+        type=Path,
+        metavar="BENCHMARK.h5",
+        help="a benchmark file (default: the one shipped with dg16m)",
     )
     row.add_argument("--row", type=int, default=None, metavar="N", help="the row to replay")
     row.add_argument(
@@ -265,11 +271,19 @@ def _replay(args: argparse.Namespace) -> int:
     n_frames = args.frames if args.frames is not None else (40 if kind == ".gif" else 8)
     if n_frames < 1:
         raise SimCommandError(f"--frames: expected an integer >= 1, found {n_frames}")
-    if (args.benchmark is None) == (args.grasps is None):
+    if args.benchmark is not None and args.grasps is not None:
         raise SimCommandError(
-            "expected either BENCHMARK.h5 with --row or --grasps FILE.h5 with --index, found "
-            + ("both" if args.benchmark is not None else "neither")
+            "expected either BENCHMARK.h5 with --row or --grasps FILE.h5 with --index, found both"
         )
+    if args.benchmark is None and args.grasps is None:
+        from dg16m_env.benchmark import EMBEDDED_BENCHMARK
+
+        if not EMBEDDED_BENCHMARK.is_file():
+            raise SimCommandError(
+                "expected BENCHMARK.h5 with --row or --grasps FILE.h5 with --index, found neither "
+                f"(and no shipped benchmark at {EMBEDDED_BENCHMARK})"
+            )
+        args.benchmark = EMBEDDED_BENCHMARK
     if args.benchmark is not None:
         stray = [
             name

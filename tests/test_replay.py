@@ -15,6 +15,7 @@ import dataset_gen.cli
 from dataset_gen.errors import Dg16mError
 from dg16m_env import replay as replay_module
 from dg16m_env.benchmark import (
+    EMBEDDED_BENCHMARK,
     Benchmark,
     BenchmarkParameters,
     build_benchmark,
@@ -229,6 +230,21 @@ def test_cli_replay_writes_a_strip(
     with Image.open(out) as image:
         assert image.format == "PNG"
         assert image.width >= 3 * 96
+
+
+@pytest.mark.skipif(not EMBEDDED_BENCHMARK.is_file(), reason="no shipped benchmark file")
+def test_cli_replay_defaults_to_the_shipped_benchmark(
+    with_sim: None, can_render: None, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "row1.png"
+    assert (
+        dataset_gen.cli.main(
+            ["sim", "replay", "--row", "1", "--out", str(out), "--frames", "2", "--size", "96x72"]
+        )
+        == 0
+    )
+    assert str(EMBEDDED_BENCHMARK) in capsys.readouterr().out
+    assert out.stat().st_size > 1000
 
 
 @pytest.mark.parametrize(
