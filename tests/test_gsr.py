@@ -1,0 +1,72 @@
+"""GSR core: many objects' dual grasps, parallel, same results for any worker count."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mujoco")
+
+from dataset_gen.generate import ObjectSource, procedural_sources
+from dg16m_env.benchmark import Benchmark, read_benchmark
+from dg16m_env.gsr import GraspJob, GsrError, evaluate_objects, jobs_from_mapping
+from dg16m_env.trial import TrialResults
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[GraspJob], Benchmark]:
+    from dg16m_env.benchmark import (
+        BenchmarkParameters,
+        build_benchmark,
+        procedural_benchmark_sources,
+    )
+
+    out = tmp_path_factory.mktemp("gsr")
+    params = BenchmarkParameters(n_grasps=50, n_passing=4, n_failing=3, n_random=2)
+    bench = read_benchmark(
+        build_benchmark(procedural_benchmark_sources(2), out, params, progress=False)
+    )
+    sources = {
+        s.object_id: s for s in procedural_sources([(o.family, o.seed) for o in bench.objects])
+    }
+    poses = {o.object_id: bench.poses[bench.object_rows(o.object_id)] for o in bench.objects}
+    return jobs_from_mapping(poses, sources), bench
+
+
+@pytest.fixture(scope="module")
+def jobs(built: tuple[list[GraspJob], Benchmark]) -> list[GraspJob]:
+    return built[0]
+
+
+def test_results_match_the_benchmark_labels_for_any_worker_count(
+    built: tuple[list[GraspJob], Benchmark],
+) -> None:
+    jobs, bench = built
+    one = evaluate_objects(jobs)
+    two = evaluate_objects(jobs, workers=2)
+    assert list(one.results) == sorted(j.object_id for j in jobs)
+    for object_id, result in one.results.items():
+        rows = bench.object_rows(object_id)
+        np.testing.assert_array_equal(result.status, bench.trials.status[rows])
+        for name in TrialResults.ARRAY_FIELDS:
+            np.testing.assert_array_equal(
+                getattr(result, name), getattr(two.results[object_id], name)
+            )
+    assert 0.0 <= one.success_rate() <= 1.0
+    assert one.summary()["objects"] == 2
+
+
+def test_a_broken_object_fails_alone(jobs: list[GraspJob], tmp_path) -> None:
+    broken = tmp_path / "broken.obj"
+    broken.write_text("v 0 0 0\nf 1 1 1\n")
+    bad = GraspJob(ObjectSource("broken", mesh=broken), jobs[0].poses)
+    result = evaluate_objects([*jobs, bad])
+    assert "broken" in result.errors
+    assert set(result.results) == {j.object_id for j in jobs}
+
+
+def test_duplicate_ids_and_missing_sources_are_rejected(jobs: list[GraspJob]) -> None:
+    with pytest.raises(GsrError, match="unique object ids"):
+        evaluate_objects([jobs[0], jobs[0]])
+    with pytest.raises(GsrError, match="expected a source"):
+        jobs_from_mapping({"nope": np.eye(4)[None, None].repeat(2, 1)}, {})
