@@ -31,15 +31,12 @@ from .atomic import write_bytes_atomic
 from .errors import Dg16mError
 from .io import (
     DualGraspSet,
-    new_manifest,
     package_version,
-    read_manifest,
     write_dg16m,
-    write_manifest,
 )
 from .objects import MESH_SUFFIXES, GraspObject, load_object
 from .pairing import candidate_pairs, dual_contacts, dual_poses, score_pairs, select_pairs
-from .parallel import Backend, run_tasks
+from .parallel import Backend, run_resumable
 from .procedural import make_procedural_object
 from .sampling import sample_antipodal_grasps
 
@@ -309,13 +306,6 @@ def _task(source: ObjectSource, out: str, params: GenerationParameters) -> dict[
     }
 
 
-def _finished(out: Path, manifest: dict[str, Any], object_id: str) -> bool:
-    entry = manifest["entries"].get(object_id)
-    if not entry or entry.get("status") != "ok":
-        return False
-    return all((out / rel).is_file() for rel in entry["files"].values())
-
-
 def generate_dataset(
     sources: Sequence[ObjectSource],
     out: str | os.PathLike[str],
@@ -343,59 +333,19 @@ def generate_dataset(
         GenerationError: bad arguments, duplicate ids, or ``out`` holds a dataset made with
             other parameters.
     """
-    if workers < 1:
-        raise GenerationError(f"--workers: expected an integer >= 1, found {workers}")
-    if backend not in ("local", "ray"):
-        raise GenerationError(f"--backend: expected 'local' or 'ray', found {backend!r}")
-    ids = [s.object_id for s in sources]
-    if len(set(ids)) != len(ids):
-        duplicate = next(i for i in ids if ids.count(i) > 1)
-        raise GenerationError(f"objects: expected unique ids, found {duplicate!r} twice")
-    root = Path(out)
-    root.mkdir(parents=True, exist_ok=True)
-    parameters = asdict(params)
-    if (root / "manifest.json").is_file():
-        manifest = read_manifest(root)
-        if manifest["kind"] != "grasps" or manifest["parameters"] != parameters:
-            raise GenerationError(
-                f"{root}: expected a grasp dataset made with the same parameters to resume, found "
-                f"kind {manifest['kind']!r} with parameters {manifest['parameters']} (use another --out)"
-            )
-    else:
-        manifest = new_manifest("grasps", parameters)
-    # A killed run can leave temporary files of atomic writes behind; they are never read.
-    for stale in (root / GRASPS_FOLDER).glob(".*.tmp-*") if (root / GRASPS_FOLDER).is_dir() else ():
-        stale.unlink()
-    todo = [s for s in sources if not _finished(root, manifest, s.object_id)]
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(
-            total=len(sources),
-            initial=len(sources) - len(todo),
-            unit="object",
-            desc="generate",
-            smoothing=0.05,
-        )
-    results = run_tasks(
+    return run_resumable(
         _task,
-        todo,
-        (str(root.resolve()), params),
+        sources,
+        (str(Path(out).resolve()), params),
+        root=Path(out),
+        kind="grasps",
+        parameters=asdict(params),
+        folders=(GRASPS_FOLDER, "meshes"),
+        error=GenerationError,
         workers=workers,
         backend=backend,
         address=address,
+        progress=progress,
+        desc="generate",
+        on_entry=on_object,
     )
-    try:
-        for source, entry in results:
-            manifest["entries"][source.object_id] = entry
-            write_manifest(root, manifest)  # sorted keys: the bytes do not depend on order
-            if on_object is not None:
-                on_object(source.object_id, entry)
-            if bar is not None:
-                bar.update(1)
-    finally:
-        if bar is not None:
-            bar.close()
-    manifest["entries"] = dict(sorted(manifest["entries"].items()))
-    return manifest

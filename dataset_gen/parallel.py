@@ -7,11 +7,13 @@ result by object id, so the outcome never depends on completion order. Used by t
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from typing import Any, Literal, TypeVar
+from pathlib import Path
+from typing import Any, Literal, Protocol, TypeVar
 
 from .errors import Dg16mError
+from .io import new_manifest, read_manifest, write_manifest
 
 Backend = Literal["local", "ray"]
 BACKENDS: tuple[str, ...] = ("local", "ray")
@@ -20,16 +22,24 @@ Item = TypeVar("Item")
 Result = TypeVar("Result")
 
 
+class HasObjectId(Protocol):
+    @property
+    def object_id(self) -> str: ...
+
+
+ObjectItem = TypeVar("ObjectItem", bound=HasObjectId)
+
+
 class ParallelError(Dg16mError, ValueError):
     """Bad backend arguments (worker count, backend name, missing Ray)."""
 
 
-def check_backend(backend: str, workers: int) -> None:
-    """Raise :class:`ParallelError` unless ``backend`` is known and ``workers >= 1``."""
+def check_backend(backend: str, workers: int, error: type[Dg16mError] = ParallelError) -> None:
+    """Raise ``error`` unless ``backend`` is known and ``workers >= 1``."""
     if not isinstance(workers, int) or workers < 1:
-        raise ParallelError(f"--workers: expected an integer >= 1, found {workers!r}")
+        raise error(f"--workers: expected an integer >= 1, found {workers!r}")
     if backend not in BACKENDS:
-        raise ParallelError(f"--backend: expected one of {BACKENDS}, found {backend!r}")
+        raise error(f"--backend: expected one of {BACKENDS}, found {backend!r}")
 
 
 def run_tasks(
@@ -102,3 +112,93 @@ def _ray(
     finally:
         if started_here:
             ray.shutdown()
+
+
+def run_resumable(
+    task: Callable[..., dict[str, Any]],
+    items: Sequence[ObjectItem],
+    args: tuple[Any, ...],
+    *,
+    root: Path,
+    kind: str,
+    parameters: Mapping[str, Any],
+    folders: Sequence[str],
+    error: type[Dg16mError],
+    workers: int = 1,
+    backend: Backend = "local",
+    address: str | None = None,
+    progress: bool = True,
+    desc: str = "objects",
+    on_entry: Callable[[str, dict[str, Any]], None] | None = None,
+) -> dict[str, Any]:
+    """Run ``task(item, *args)`` for every item not yet finished in ``root``; return the manifest.
+
+    ``root/manifest.json`` (of ``kind``, made with ``parameters``) records one entry per object id
+    as each task returns it; an object is finished when its entry is ``ok`` and all its files
+    exist, so a rerun after an interruption does only the rest. Temporary files left in
+    ``folders`` by killed atomic writes are removed first.
+
+    Raises:
+        ``error``: bad worker count or backend, duplicate ids, or ``root`` holds a manifest of
+            another kind or made with other parameters.
+    """
+    check_backend(backend, workers, error)
+    ids = [item.object_id for item in items]
+    if len(set(ids)) != len(ids):
+        duplicate = next(i for i in ids if ids.count(i) > 1)
+        raise error(f"objects: expected unique ids, found {duplicate!r} twice")
+    root.mkdir(parents=True, exist_ok=True)
+    if (root / "manifest.json").is_file():
+        manifest = read_manifest(root)
+        if manifest["kind"] != kind or manifest["parameters"] != parameters:
+            found = manifest["parameters"]
+            differing = sorted(
+                k for k in {*parameters, *found} if parameters.get(k) != found.get(k)
+            )
+            raise error(
+                f"{root}: expected a {kind} folder made with the same parameters to resume, found "
+                f"kind {manifest['kind']!r} with parameters differing in {differing} "
+                "(use another --out)"
+            )
+    else:
+        manifest = new_manifest(kind, dict(parameters))
+    for folder in folders:
+        if (root / folder).is_dir():
+            for stale in (root / folder).glob(".*.tmp-*"):
+                stale.unlink()
+
+    def finished(object_id: str) -> bool:
+        entry = manifest["entries"].get(object_id)
+        return (
+            bool(entry)
+            and entry["status"] == "ok"
+            and all((root / rel).is_file() for rel in entry["files"].values())
+        )
+
+    todo = [item for item in items if not finished(item.object_id)]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(
+            total=len(items),
+            initial=len(items) - len(todo),
+            unit="object",
+            desc=desc,
+            smoothing=0.05,
+        )
+    try:
+        for item, entry in run_tasks(
+            task, todo, args, workers=workers, backend=backend, address=address
+        ):
+            manifest["entries"][item.object_id] = entry
+            write_manifest(root, manifest)  # sorted keys: the bytes do not depend on order
+            if on_entry is not None:
+                on_entry(item.object_id, entry)
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    manifest["entries"] = dict(sorted(manifest["entries"].items()))
+    return manifest

@@ -59,12 +59,9 @@ from dataset_gen.force_closure import evaluate
 from dataset_gen.generate import ObjectSource, mesh_sources, object_seed, procedural_sources
 from dataset_gen.gripper import get_gripper
 from dataset_gen.io import (
-    new_manifest,
     package_version,
     read_dg16m,
-    read_manifest,
     write_array,
-    write_manifest,
 )
 from dataset_gen.objects import ConvexPart, GraspObject, part_from_dict
 from dataset_gen.pairing import (
@@ -74,7 +71,7 @@ from dataset_gen.pairing import (
     random_pairs,
     score_pairs,
 )
-from dataset_gen.parallel import Backend, run_tasks
+from dataset_gen.parallel import Backend, run_resumable
 from dataset_gen.procedural import benchmark_specs
 from dataset_gen.sampling import sample_antipodal_grasps
 from dg16m_env.decomposition import object_parts
@@ -698,59 +695,23 @@ def build_benchmark(
             no object succeeded.
     """
     params = params or BenchmarkParameters()
-    ids = [item.object_id for item in items]
-    if len(set(ids)) != len(ids):
-        raise BenchmarkError(
-            f"objects: expected unique ids, found {len(ids) - len(set(ids))} repeats"
-        )
     root = Path(out)
-    root.mkdir(parents=True, exist_ok=True)
-    parameters = json.loads(json.dumps(params.to_dict()))
-    if (root / "manifest.json").is_file():
-        manifest = read_manifest(root)
-        if manifest["kind"] != "benchmark" or manifest["parameters"] != parameters:
-            raise BenchmarkError(
-                f"{root}: expected a benchmark built with the same parameters to resume, found kind "
-                f"{manifest['kind']!r} with other parameters (use another --out)"
-            )
-    else:
-        manifest = new_manifest("benchmark", parameters)
-    objects_dir = root / OBJECTS_FOLDER
-    for stale in objects_dir.glob(".*.tmp-*") if objects_dir.is_dir() else ():
-        stale.unlink()
-
-    def finished(object_id: str) -> bool:
-        entry = manifest["entries"].get(object_id)
-        return (
-            bool(entry)
-            and entry["status"] == "ok"
-            and all((root / rel).is_file() for rel in entry["files"].values())
-        )
-
-    todo = [item for item in items if not finished(item.object_id)]
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(
-            total=len(items), initial=len(items) - len(todo), unit="object", desc="benchmark"
-        )
-    try:
-        for item, entry in run_tasks(
-            _object_task,
-            todo,
-            (str(root.resolve()), params),
-            workers=workers,
-            backend=backend,
-            address=address,
-        ):
-            manifest["entries"][item.object_id] = entry
-            write_manifest(root, manifest)
-            if bar is not None:
-                bar.update(1)
-    finally:
-        if bar is not None:
-            bar.close()
+    manifest = run_resumable(
+        _object_task,
+        items,
+        (str(root.resolve()), params),
+        root=root,
+        kind="benchmark",
+        parameters=json.loads(json.dumps(params.to_dict())),
+        folders=(OBJECTS_FOLDER,),
+        error=BenchmarkError,
+        workers=workers,
+        backend=backend,
+        address=address,
+        progress=progress,
+        desc="benchmark",
+    )
+    ids = [item.object_id for item in items]
     done = [i for i in ids if manifest["entries"].get(i, {}).get("status") == "ok"]
     if not done:
         raise BenchmarkError(f"{root}: expected at least one object to build, found all failed")
