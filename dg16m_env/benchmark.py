@@ -59,6 +59,7 @@ from dataset_gen.force_closure import evaluate
 from dataset_gen.generate import ObjectSource, mesh_sources, object_seed, procedural_sources
 from dataset_gen.gripper import get_gripper
 from dataset_gen.io import (
+    DualGraspSet,
     package_version,
     read_dg16m,
     write_array,
@@ -533,10 +534,11 @@ def sampled_pairs(
 
 
 def _file_pairs(
-    item: BenchmarkSource, params: BenchmarkParameters, rng: np.random.Generator
+    item: BenchmarkSource,
+    data: DualGraspSet,
+    params: BenchmarkParameters,
+    rng: np.random.Generator,
 ) -> dict[str, np.ndarray]:
-    assert item.grasp_file is not None
-    data = read_dg16m(item.grasp_file)
     take_pass = _choose(np.sort(data.passing_indices), params.n_passing, rng)
     want_fail = params.n_failing + params.n_passing - take_pass.size
     take_fail = _choose(np.sort(data.failed_indices), want_fail, rng)
@@ -565,15 +567,16 @@ def _file_pairs(
 def benchmark_object(item: BenchmarkSource, params: BenchmarkParameters) -> Benchmark:
     """Choose and simulate one object's dual grasps (see the module docstring)."""
     source = item.source
-    if item.grasp_file is not None and source.mesh is not None and source.scale is None:
+    data = read_dg16m(item.grasp_file) if item.grasp_file is not None else None
+    if data is not None and source.mesh is not None and source.scale is None:
         # A DG16M file records the mesh scale its contacts were computed with.
-        source = replace(source, scale=read_dg16m(item.grasp_file).object_scale)
+        source = replace(source, scale=data.object_scale)
     obj = source.load(params.mass)
     parts = object_parts(obj)
     rng = np.random.default_rng(object_seed(params.seed, f"benchmark:{obj.object_id}"))
     rows = (
-        _file_pairs(item, params, rng)
-        if item.grasp_file is not None
+        _file_pairs(item, data, params, rng)
+        if data is not None
         else sampled_pairs(obj, params, rng)
     )
     scene = compile_scene(obj, params=params.scene, parts=parts)
