@@ -28,16 +28,14 @@ import numpy as np
 
 from dataset_gen.generate import (
     GenerationParameters,
-    ObjectSource,
     StageTimes,
     generate_object,
-    object_seed,
-    procedural_sources,
 )
 from dataset_gen.io import write_dg16m
 from dataset_gen.pairing import strategy_pass_rates
 from dataset_gen.procedural import object_specs
 from dataset_gen.sampling import sample_antipodal_grasps
+from dataset_gen.sources import ObjectSource, object_seed, procedural_sources
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 RELEASE_AIRPLANE_SECONDS = 226.0  # ../shared/data/real/README.md: the release code's run time

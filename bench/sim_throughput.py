@@ -39,9 +39,9 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from dataset_gen.generate import ObjectSource, object_seed, procedural_sources
 from dataset_gen.objects import GraspObject
 from dataset_gen.procedural import benchmark_specs
+from dataset_gen.sources import ObjectSource, object_seed, procedural_sources
 from dg16m_env import trial
 from dg16m_env.benchmark import BenchmarkParameters, sampled_pairs
 from dg16m_env.decomposition import object_parts

@@ -17,7 +17,6 @@ processed (a broken mesh) is recorded as ``failed`` with its reason and does not
 
 from __future__ import annotations
 
-import hashlib
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -34,11 +33,11 @@ from .io import (
     package_version,
     write_dg16m,
 )
-from .objects import MESH_SUFFIXES, GraspObject, load_object
+from .objects import GraspObject
 from .pairing import candidate_pairs, dual_contacts, dual_poses, score_pairs, select_pairs
 from .parallel import Backend, run_resumable
-from .procedural import make_procedural_object
 from .sampling import sample_antipodal_grasps
+from .sources import ObjectSource, object_seed
 
 GRASPS_FOLDER = "grasps"
 
@@ -91,78 +90,6 @@ class GenerationParameters:
                 )
         if not isinstance(self.seed, int) or self.seed < 0:
             raise GenerationError(f"seed: expected an integer >= 0, found {self.seed!r}")
-
-
-@dataclass(frozen=True)
-class ObjectSource:
-    """Where one object comes from: a mesh file or a procedural (family, seed)."""
-
-    object_id: str
-    mesh: Path | None = None
-    family: str | None = None
-    family_seed: int | None = None
-    scale: float | None = None
-
-    def load(self, mass: float) -> GraspObject:
-        """Build the object (raises :class:`~dataset_gen.errors.MeshError` for broken meshes)."""
-        if self.mesh is not None:
-            return load_object(self.mesh, object_id=self.object_id, scale=self.scale, mass=mass)
-        if self.family is None or self.family_seed is None:
-            raise GenerationError(
-                f"{self.object_id}: expected a mesh file or a procedural (family, seed), found neither"
-            )
-        return make_procedural_object(self.family, self.family_seed, mass=mass)
-
-    @property
-    def object_file(self) -> str:
-        """The ``object/file`` string stored in the output; for procedural objects the mesh is
-        written there, relative to the dataset folder."""
-        if self.mesh is not None:
-            return self.mesh.name
-        return f"meshes/{self.object_id}.obj"
-
-
-def object_seed(seed: int, object_id: str) -> int:
-    """A 64-bit seed for one object from the global seed and its id (sha256, stable everywhere)."""
-    digest = hashlib.sha256(f"dg16m:{seed}:{object_id}".encode()).digest()
-    return int.from_bytes(digest[:8], "little")
-
-
-def mesh_sources(
-    folder: str | os.PathLike[str], *, scale: float | None = None
-) -> list[ObjectSource]:
-    """One source per mesh file in ``folder`` (not recursive), sorted by file name.
-
-    Raises:
-        GenerationError: the folder does not exist, holds no mesh files, or two files share a stem.
-    """
-    root = Path(folder)
-    if not root.is_dir():
-        raise GenerationError(f"--meshes: expected a folder of mesh files, found no folder {root}")
-    files = sorted(p for p in root.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
-    if not files:
-        raise GenerationError(
-            f"--meshes {root}: expected mesh files ({', '.join(sorted(MESH_SUFFIXES))}), found none"
-        )
-    stems: dict[str, Path] = {}
-    for path in files:
-        if path.stem in stems:
-            raise GenerationError(
-                f"--meshes {root}: expected unique file stems (object ids), found {stems[path.stem].name} "
-                f"and {path.name}"
-            )
-        stems[path.stem] = path
-    return [ObjectSource(object_id=p.stem, mesh=p, scale=scale) for p in files]
-
-
-def procedural_sources(specs: Sequence[tuple[str, int]]) -> list[ObjectSource]:
-    """Sources for procedural ``(family, seed)`` specs (see :mod:`dataset_gen.procedural`)."""
-    from .procedural import object_id as procedural_id
-
-    return [
-        ObjectSource(object_id=procedural_id(family, seed), family=family, family_seed=seed)
-        for family, seed in specs
-    ]
 
 
 @dataclass

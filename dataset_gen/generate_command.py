@@ -89,13 +89,9 @@ def register(subparsers) -> None:
 
 
 def _generate(args: argparse.Namespace) -> int:
-    from .generate import (
-        GenerationParameters,
-        generate_dataset,
-        mesh_sources,
-        procedural_sources,
-    )
+    from .generate import GenerationParameters, generate_dataset
     from .procedural import benchmark_specs, object_specs
+    from .sources import mesh_sources, procedural_sources
 
     params = GenerationParameters(
         seed=args.seed,

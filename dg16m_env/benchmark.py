@@ -56,7 +56,6 @@ import numpy as np
 from dataset_gen.atomic import atomic_path
 from dataset_gen.errors import Dg16mError
 from dataset_gen.force_closure import evaluate
-from dataset_gen.generate import ObjectSource, mesh_sources, object_seed, procedural_sources
 from dataset_gen.gripper import get_gripper
 from dataset_gen.io import (
     DualGraspSet,
@@ -75,6 +74,7 @@ from dataset_gen.pairing import (
 from dataset_gen.parallel import Backend, run_resumable
 from dataset_gen.procedural import benchmark_specs
 from dataset_gen.sampling import sample_antipodal_grasps
+from dataset_gen.sources import ObjectSource, mesh_sources, object_seed, procedural_sources
 from dg16m_env.decomposition import object_parts
 from dg16m_env.scene import SceneParameters, compile_scene
 from dg16m_env.trial import PHASES, TrialProtocol, TrialResults, TrialStatus, run_trials

@@ -15,9 +15,9 @@ from typing import Any
 import numpy as np
 
 from dataset_gen.errors import Dg16mError
-from dataset_gen.generate import ObjectSource
 from dataset_gen.objects import ConvexPart
 from dataset_gen.parallel import Backend, run_tasks
+from dataset_gen.sources import ObjectSource
 from dg16m_env.decomposition import object_parts
 from dg16m_env.scene import SceneParameters, compile_scene
 from dg16m_env.trial import TrialProtocol, TrialResults, check_dual_grasps, run_trials

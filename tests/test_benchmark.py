@@ -12,8 +12,9 @@ import pytest
 pytest.importorskip("mujoco")
 
 from dataset_gen.cli import main as cli_main
-from dataset_gen.generate import GenerationParameters, generate_dataset, procedural_sources
+from dataset_gen.generate import GenerationParameters, generate_dataset
 from dataset_gen.io import read_manifest
+from dataset_gen.sources import procedural_sources
 from dg16m_env.benchmark import (
     EMBEDDED_BENCHMARK,
     SOURCES,

@@ -19,12 +19,10 @@ from dataset_gen.generate import (
     GenerationParameters,
     generate_dataset,
     generate_object,
-    mesh_sources,
-    object_seed,
-    procedural_sources,
 )
 from dataset_gen.io import read_dg16m, read_manifest
 from dataset_gen.procedural import make_procedural_object
+from dataset_gen.sources import mesh_sources, object_seed, procedural_sources
 
 SMALL = GenerationParameters(n_grasps=60, max_passing=50, max_failing=50)
 SPECS = [("table", 0), ("ladder", 1), ("crate", 2)]
@@ -88,6 +86,7 @@ def test_kill_9_then_resume_gives_the_same_bytes(tmp_path: Path) -> None:
     out = tmp_path / "killed"
     script = (
         "from dataset_gen.generate import *\n"
+        "from dataset_gen.sources import procedural_sources\n"
         f"p = GenerationParameters(n_grasps=60, max_passing=50, max_failing=50)\n"
         f"generate_dataset(procedural_sources({SPECS!r}), {str(out)!r}, p, progress=False)\n"
     )

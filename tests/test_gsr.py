@@ -7,7 +7,7 @@ import pytest
 
 pytest.importorskip("mujoco")
 
-from dataset_gen.generate import ObjectSource, procedural_sources
+from dataset_gen.sources import ObjectSource, procedural_sources
 from dg16m_env.benchmark import Benchmark, read_benchmark
 from dg16m_env.gsr import GraspJob, GsrError, evaluate_objects, jobs_from_mapping
 from dg16m_env.trial import TrialResults

@@ -285,8 +285,9 @@ def test_cli_replay_rejects_other_suffixes(
 
 @pytest.fixture(scope="module")
 def grasp_file(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
-    from dataset_gen.generate import GenerationParameters, generate_dataset, procedural_sources
+    from dataset_gen.generate import GenerationParameters, generate_dataset
     from dataset_gen.procedural import benchmark_specs
+    from dataset_gen.sources import procedural_sources
 
     out = tmp_path_factory.mktemp("dataset")
     sources = procedural_sources(benchmark_specs()[:1])

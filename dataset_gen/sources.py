@@ -1,0 +1,91 @@
+"""Where objects come from: mesh files or procedural ``(family, seed)`` specs, and their seeds.
+
+An :class:`ObjectSource` names one object and builds it on demand (in a worker process, so only
+the source crosses process boundaries). :func:`object_seed` derives each object's random stream
+from a global seed and the object id alone, which makes every per-object result independent of
+the worker count, order and backend. Used by the generator and the simulation benchmark.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import MeshError
+from .objects import MESH_SUFFIXES, GraspObject, load_object
+from .procedural import make_procedural_object
+
+
+@dataclass(frozen=True)
+class ObjectSource:
+    """Where one object comes from: a mesh file or a procedural (family, seed)."""
+
+    object_id: str
+    mesh: Path | None = None
+    family: str | None = None
+    family_seed: int | None = None
+    scale: float | None = None
+
+    def load(self, mass: float) -> GraspObject:
+        """Build the object (raises :class:`~dataset_gen.errors.MeshError` for broken meshes)."""
+        if self.mesh is not None:
+            return load_object(self.mesh, object_id=self.object_id, scale=self.scale, mass=mass)
+        if self.family is None or self.family_seed is None:
+            raise MeshError(
+                f"{self.object_id}: expected a mesh file or a procedural (family, seed), found neither"
+            )
+        return make_procedural_object(self.family, self.family_seed, mass=mass)
+
+    @property
+    def object_file(self) -> str:
+        """The ``object/file`` string stored in the output; for procedural objects the mesh is
+        written there, relative to the dataset folder."""
+        if self.mesh is not None:
+            return self.mesh.name
+        return f"meshes/{self.object_id}.obj"
+
+
+def object_seed(seed: int, object_id: str) -> int:
+    """A 64-bit seed for one object from the global seed and its id (sha256, stable everywhere)."""
+    digest = hashlib.sha256(f"dg16m:{seed}:{object_id}".encode()).digest()
+    return int.from_bytes(digest[:8], "little")
+
+
+def mesh_sources(
+    folder: str | os.PathLike[str], *, scale: float | None = None
+) -> list[ObjectSource]:
+    """One source per mesh file in ``folder`` (not recursive), sorted by file name.
+
+    Raises:
+        MeshError: the folder does not exist, holds no mesh files, or two files share a stem.
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        raise MeshError(f"--meshes: expected a folder of mesh files, found no folder {root}")
+    files = sorted(p for p in root.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+    if not files:
+        raise MeshError(
+            f"--meshes {root}: expected mesh files ({', '.join(sorted(MESH_SUFFIXES))}), found none"
+        )
+    stems: dict[str, Path] = {}
+    for path in files:
+        if path.stem in stems:
+            raise MeshError(
+                f"--meshes {root}: expected unique file stems (object ids), found {stems[path.stem].name} "
+                f"and {path.name}"
+            )
+        stems[path.stem] = path
+    return [ObjectSource(object_id=p.stem, mesh=p, scale=scale) for p in files]
+
+
+def procedural_sources(specs: Sequence[tuple[str, int]]) -> list[ObjectSource]:
+    """Sources for procedural ``(family, seed)`` specs (see :mod:`dataset_gen.procedural`)."""
+    from .procedural import object_id as procedural_id
+
+    return [
+        ObjectSource(object_id=procedural_id(family, seed), family=family, family_seed=seed)
+        for family, seed in specs
+    ]
