@@ -11,7 +11,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import textwrap
 from collections.abc import Sequence
+from typing import Any
 
 from dataset_gen.errors import Dg16mError
 
@@ -23,6 +25,30 @@ COMMAND_MODULES: tuple[str, ...] = (
     "dg16m_env.sim_command",
 )
 """Modules that add subcommands, in the order they appear in ``dg16m --help``."""
+
+
+def add_command(
+    subparsers: Any,
+    name: str,
+    help_text: str,
+    examples: str,
+    *,
+    description: str | None = None,
+    **kwargs: Any,
+) -> argparse.ArgumentParser:
+    """Add one ``dg16m`` subcommand with its one-line help, a wrapped description and examples.
+
+    Every package's command module builds its parsers with this, so all commands look alike.
+    ``examples`` is a block of indented command lines shown under "examples:" in ``--help``.
+    """
+    return subparsers.add_parser(
+        name,
+        help=help_text,
+        description=textwrap.fill(description or help_text, 88),
+        epilog="examples:\n" + examples,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        **kwargs,
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
