@@ -7,15 +7,25 @@ Builds at least 50,000 four-contact pairs of mixed difficulty:
   ``../shared/data/real`` is present;
 * synthetic families from :mod:`dataset_gen.force_closure.synthetic` (antipodal on spheres,
   pinches on boxes, random, near-collinear);
-* near-threshold: pairs moved along a path from a passing to a failing configuration until
-  Clarabel's loss lies within a factor 3 of the threshold (the hardest verdicts).
+* near-threshold: pairs moved along a straight path from a passing to a failing box pinch until
+  their optimal loss hits a target drawn log-uniformly from ``[threshold / 3, 3 threshold]``
+  (bisection on a tight Clarabel solve); the printed loss distribution shows what was reached.
+
+Verdicts near the threshold are checked on that set and on a second one drawn the same way
+within 1 % of the threshold (``[threshold / 1.01, 1.01 threshold]``, the stress case): every
+method against a TIGHT reference (per pair the better of a default and a
+:data:`~dataset_gen.force_closure.clarabel_solver.TIGHT_SETTINGS` Clarabel solve: lowest
+attained loss, highest dual bound), beside a plain Clarabel solve at its default tolerances.
+That is where default tolerances flip verdicts and where the library's tight re-solve of the
+pairs whose bounds straddle the threshold earns its cost.
 
 Then times, on one core: a CVXPY loop written like the released code (subsample), Clarabel on
-every pair (the reference verdicts), and ``fast`` / ``auto`` in exact-loss and verdict-only modes.
-Prints pairs/s, the ratio to the CVXPY loop, the share sent to Clarabel, and verdict agreement
-with Clarabel on every pair.
+every pair (the library's reference method), and ``fast`` / ``auto`` in exact-loss and
+verdict-only modes. Prints pairs/s, the ratios to the CVXPY loop and to Clarabel measured in the
+same run, the share sent to Clarabel, and verdict agreement with Clarabel on every pair.
 
     .venv/bin/python bench/fc_throughput.py            # about two minutes
+    .venv/bin/python bench/fc_throughput.py --pairs 20000 --near-threshold 200   # short
     .venv/bin/python bench/fc_throughput.py --json runs/fc_throughput.json
 """
 
@@ -28,14 +38,17 @@ for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUM
     os.environ.setdefault(_name, "1")
 
 import argparse
+import itertools
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from dataset_gen.force_closure import evaluate, grasp_matrix
+from dataset_gen.force_closure import SOLVED_CLARABEL_TIGHT, evaluate, grasp_matrix
+from dataset_gen.force_closure.clarabel_solver import ClarabelBatch, best_of, solve_batch
 from dataset_gen.force_closure.synthetic import FAMILIES, family_pairs
+from dataset_gen.parameters import PAPER
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 
@@ -87,17 +100,40 @@ def real_repaired(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndar
     )
 
 
+def _axes(normals: np.ndarray, convention: str) -> np.ndarray:
+    return -normals if convention == "physical" else normals
+
+
+def _clarabel(
+    points: np.ndarray, normals: np.ndarray, convention: str, *, tight: bool
+) -> ClarabelBatch:
+    """Plain Clarabel solves of the gravity problem (no re-solve), default or tight tolerances,
+    on the same unit axes that :func:`evaluate` builds (it normalises the normals again)."""
+    wrench = np.tile(PAPER.gravity_wrench(), (len(points), 1))
+    unit = normals / np.linalg.norm(normals, axis=-1)[..., None]
+    axes = _axes(unit, convention)
+    return solve_batch(points, axes, wrench, mu=PAPER.mu, f_high=PAPER.f_high, tight=tight)
+
+
 def near_threshold(
-    n: int, rng: np.random.Generator, convention: str
+    n: int, rng: np.random.Generator, convention: str, spread: float = 3.0
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Bisect along straight paths from passing to failing box pinches to L ~ threshold."""
+    """Pairs whose optimal loss is spread log-uniformly over [threshold / spread, spread
+    threshold].
+
+    Each pair lies on a straight path from a passing box pinch (loss 0) to a failing one (loss
+    proven > 3 threshold); bisection on a tight Clarabel solve moves it to where the loss crosses
+    its own target ``threshold * spread ** U(-1, 1)`` (the loss is continuous along the path).
+    """
+    threshold = PAPER.threshold
     points, normals = family_pairs("box", 20 * n, rng)
     result = evaluate(points, normals, convention=convention, loss_rtol=None)
     good = np.flatnonzero(result.passed)
-    bad = np.flatnonzero(result.rank_ok & ~result.passed)
+    bad = np.flatnonzero(result.rank_ok & (result.loss_lower[:, 0] > 3 * threshold))
     m = min(n, good.size, bad.size)
     a, b = points[good[:m]], points[bad[:m]]
     na, nb = normals[good[:m]], normals[bad[:m]]
+    target = threshold * spread ** rng.uniform(-1.0, 1.0, size=m)
 
     def at(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         p = (1 - t)[:, None, None] * a + t[:, None, None] * b
@@ -107,21 +143,123 @@ def near_threshold(
     lo, hi = np.zeros(m), np.ones(m)
     for _ in range(40):
         mid = 0.5 * (lo + hi)
-        p, v = at(mid)
-        loss = evaluate(p, v, convention=convention, method="clarabel").loss
-        above = ~(loss <= 1e-5)
+        loss = _clarabel(*at(mid), convention, tight=True).losses
+        above = ~(loss <= target)
         hi = np.where(above, mid, hi)
         lo = np.where(above, lo, mid)
-    # Spread the final loss over [threshold / 3, 3 * threshold] on both sides of it.
-    t = lo + (hi - lo) * rng.uniform(-2.0, 3.0, size=m)
-    return at(np.clip(t, 0.0, 1.0))
+    return at(hi)
+
+
+def near_threshold_report(
+    name: str, points: np.ndarray, normals: np.ndarray, convention: str, spread: float
+) -> dict[str, object]:
+    """Loss distribution of a near-threshold set and every method's verdicts against a tight
+    reference on it (printed; returned for the JSON file)."""
+    threshold = PAPER.threshold
+    start = time.perf_counter()
+    default = _clarabel(points, normals, convention, tight=False)
+    default_seconds = time.perf_counter() - start
+    start = time.perf_counter()
+    tight = _clarabel(points, normals, convention, tight=True)
+    tight_seconds = time.perf_counter() - start
+    reference = best_of(default, tight)
+    truth = reference.losses <= threshold
+    unsettled = ~truth & ~(reference.lower > threshold)
+    ratio = reference.losses / threshold
+    edges = spread ** np.linspace(-1.0, 1.0, 7)
+    counts, _ = np.histogram(ratio, bins=np.concatenate([[0.0], edges, [np.inf]]))
+    n = len(points)
+    print(
+        f"{name}: {n} pairs, targets log-uniform in [threshold / {spread:g}, "
+        f"{spread:g} threshold]; reference loss / threshold, quantiles 0/5/25/50/75/95/100%:"
+    )
+    print(
+        "  " + " ".join(f"{q:.3f}" for q in np.quantile(ratio, [0, 0.05, 0.25, 0.5, 0.75, 0.95, 1]))
+    )
+    inner = [f"{lo:.3f}-{hi:.3f}" for lo, hi in itertools.pairwise(edges)]
+    labels = [f"<{edges[0]:.3f}", *inner, f">{edges[-1]:.3f}"]
+    print(
+        "  histogram (log-uniform gives equal middle bins): "
+        + ", ".join(f"{label} {count}" for label, count in zip(labels, counts, strict=True))
+    )
+    rows: list[dict[str, object]] = [
+        {
+            "method": "clarabel, default tolerances",
+            "seconds": default_seconds,
+            "disagree": int(((default.losses <= threshold) != truth).sum()),
+            "tight_resolves": 0,
+        },
+        {
+            "method": "clarabel, tight tolerances",
+            "seconds": tight_seconds,
+            "disagree": int(((tight.losses <= threshold) != truth).sum()),
+            "tight_resolves": len(points),
+        },
+    ]
+    for label, kwargs in (
+        ("evaluate clarabel", {"method": "clarabel"}),
+        ("evaluate auto (exact loss)", {"method": "auto"}),
+        ("evaluate auto (verdict only)", {"method": "auto", "loss_rtol": None}),
+    ):
+        start = time.perf_counter()
+        result = evaluate(points, normals, convention=convention, **kwargs)
+        seconds = time.perf_counter() - start
+        rows.append(
+            {
+                "method": label,
+                "seconds": seconds,
+                "disagree": int((result.passed != truth).sum()),
+                "tight_resolves": int((result.solved_by == SOLVED_CLARABEL_TIGHT).sum()),
+                "changed_by_resolve": int((result.passed != (default.losses <= threshold)).sum()),
+                "unproven": int((~result.verdict_proven).sum()),
+            }
+        )
+    print(
+        f"  {'method':30s} {'seconds':>8s} {'disagree':>9s} {'unproven':>9s} "
+        f"{'tight re-solves':>16s} {'vs default':>11s}"
+    )
+    for row in rows:
+        print(
+            f"  {row['method']:30s} {row['seconds']:8.3f} {row['disagree']:9d} "
+            f"{row.get('unproven', '-')!s:>9s} {row['tight_resolves']!s:>16s} "
+            f"{row.get('changed_by_resolve', '-')!s:>11s}"
+        )
+    gap = (default.losses - default.lower) / threshold
+    band = (default.losses > threshold) & ~(default.lower > threshold)
+    print(
+        f"  default solve: (attained - dual bound) / threshold median {np.median(gap):.2e}, "
+        f"max {gap.max():.2e}; bounds straddle the threshold on {int(band.sum())} pairs"
+        + (
+            f", losses {default.losses[band].min() / threshold:.4f}-"
+            f"{default.losses[band].max() / threshold:.4f} threshold"
+            if band.any()
+            else ""
+        )
+    )
+    print(
+        "  disagree: verdicts that differ from the reference; unproven: failures without a dual "
+        "bound above the threshold; vs default: verdicts that differ from the default Clarabel "
+        f"solve's. Reference: {int(truth.sum())} passes, {int(unsettled.sum())} failures it "
+        "cannot prove either"
+    )
+    return {
+        "name": name,
+        "spread": spread,
+        "pairs": n,
+        "loss_over_threshold_quantiles": np.quantile(ratio, [0, 0.25, 0.5, 0.75, 1]).tolist(),
+        "histogram": dict(zip(labels, counts.tolist(), strict=True)),
+        "reference_unsettled": int(unsettled.sum()),
+        "default_gap_over_threshold_max": float(gap.max()),
+        "default_straddling": int(band.sum()),
+        "rows": rows,
+    }
 
 
 def cvxpy_loop(points: np.ndarray, axes: np.ndarray) -> tuple[np.ndarray, float]:
     """The released code's per-pair CVXPY problem (rank test, four SOC pairs, norm objective)."""
     import cvxpy as cp
 
-    w = np.array([0.0, 0.0, -60.0, 0.0, 0.0, 0.0])
+    w = PAPER.gravity_wrench()
     G_all = grasp_matrix(points, axes)
     passed = np.zeros(len(points), dtype=bool)
     start = time.perf_counter()
@@ -129,12 +267,12 @@ def cvxpy_loop(points: np.ndarray, axes: np.ndarray) -> tuple[np.ndarray, float]
         if np.linalg.matrix_rank(G) != 6:
             continue
         f = [cp.Variable(3) for _ in range(4)]
-        constraints = [cp.norm(fk) <= 70.0 for fk in f]
-        constraints += [cp.SOC(0.4 * fk[2], fk[0:2]) for fk in f]
+        constraints = [cp.norm(fk) <= PAPER.f_high for fk in f]
+        constraints += [cp.SOC(PAPER.mu * fk[2], fk[0:2]) for fk in f]
         wrench = sum(G[:, 3 * k : 3 * k + 3] @ f[k] for k in range(4))
         problem = cp.Problem(cp.Minimize(cp.norm(wrench + w)), constraints)
         problem.solve()
-        passed[i] = problem.value < 1e-5
+        passed[i] = problem.value < PAPER.threshold
     return passed, time.perf_counter() - start
 
 
@@ -150,6 +288,11 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)
     parts: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     parts["near_threshold"] = near_threshold(args.near_threshold, rng, args.convention)
+    at_threshold = near_threshold(args.near_threshold, rng, args.convention, spread=1.01)
+    near = [
+        near_threshold_report("near-threshold set", *parts["near_threshold"], args.convention, 3.0),
+        near_threshold_report("within 1 % (stress)", *at_threshold, args.convention, 1.01),
+    ]
     remaining = args.pairs - len(parts["near_threshold"][0])
     real = real_repaired(remaining // 2, rng)
     if real is not None:
@@ -169,7 +312,7 @@ def main() -> None:
         + ", ".join(f"{name} {int((names == name).sum())}" for name in parts)
     )
 
-    axes = -normals if args.convention == "physical" else normals
+    axes = _axes(normals, args.convention)
     sub = rng.choice(n, size=min(args.cvxpy_pairs, n), replace=False)
     cvx_passed, cvx_seconds = cvxpy_loop(points[sub], axes[sub])
     cvx_rate = len(sub) / cvx_seconds
@@ -187,7 +330,7 @@ def main() -> None:
             loss_rtol=None,
         ),
     ]
-    reference = runs[0][1]
+    reference, reference_seconds = runs[0][1], runs[0][2]
     cvx_agree = int((cvx_passed == reference.passed[sub]).sum())
     rows = [
         {
@@ -196,6 +339,7 @@ def main() -> None:
             "seconds": cvx_seconds,
             "pairs_per_s": cvx_rate,
             "ratio_to_cvxpy": 1.0,
+            "ratio_to_clarabel": (len(sub) / cvx_seconds) / (n / reference_seconds),
             "fallback": None,
             "verdict_disagreements": int(len(sub) - cvx_agree),
         }
@@ -211,14 +355,15 @@ def main() -> None:
                 "seconds": seconds,
                 "pairs_per_s": n / seconds,
                 "ratio_to_cvxpy": (n / seconds) / cvx_rate,
+                "ratio_to_clarabel": reference_seconds / seconds,
                 "fallback": result.fallback_fraction if label != "clarabel" else None,
                 "verdict_disagreements": int((result.passed != reference.passed).sum()),
                 "max_rel_loss_error_failing": float(rel.max()) if rel.size else 0.0,
             }
         )
     print(
-        f"{'method':28s} {'pairs':>7s} {'pairs/s':>10s} {'x cvxpy':>9s} {'fallback':>9s} "
-        f"{'disagree':>9s} {'loss err':>9s}"
+        f"{'method':28s} {'pairs':>7s} {'pairs/s':>10s} {'x cvxpy':>9s} {'x clarabel':>10s} "
+        f"{'fallback':>9s} {'disagree':>9s} {'loss err':>9s}"
     )
     for row in rows:
         fallback = "-" if row["fallback"] is None else f"{100 * row['fallback']:.3f}%"
@@ -226,8 +371,8 @@ def main() -> None:
         loss_error = "-" if error is None or row["method"] == "clarabel" else f"{error:.1e}"
         print(
             f"{row['method']:28s} {row['pairs']:7d} {row['pairs_per_s']:10.0f} "
-            f"{row['ratio_to_cvxpy']:9.0f} {fallback:>9s} {row['verdict_disagreements']:9d} "
-            f"{loss_error:>9s}"
+            f"{row['ratio_to_cvxpy']:9.0f} {row['ratio_to_clarabel']:10.2f} {fallback:>9s} "
+            f"{row['verdict_disagreements']:9d} {loss_error:>9s}"
         )
     print(
         "disagree: verdicts that differ from Clarabel's (the cvxpy row: on its subsample); "
@@ -244,7 +389,9 @@ def main() -> None:
     if args.json:
         from dataset_gen.atomic import write_json_atomic
 
-        write_json_atomic(Path(args.json), {"convention": args.convention, "rows": rows})
+        write_json_atomic(
+            Path(args.json), {"convention": args.convention, "rows": rows, "near_threshold": near}
+        )
 
 
 if __name__ == "__main__":

@@ -369,6 +369,11 @@ def main() -> None:
             flush=True,
         )
 
+    report(rows, args, mesh_note)
+
+
+def report(rows: list[dict[str, Any]], args: Arguments, mesh_note: str | None) -> None:
+    """Print the table, the medians and the projection; write ``--json`` when asked."""
     print()
     print(table(rows))
     print()

@@ -1,30 +1,82 @@
 """The ``dg16m`` command line.
 
-Each package contributes subcommands through a module with ``register(subparsers)``; the modules
-are listed in :data:`COMMAND_MODULES` (imported by name, so ``dataset_gen`` does not depend on
-the packages layered above it). Errors caused by input (:class:`~dataset_gen.errors.Dg16mError`)
-print one line and exit with status 2; anything else is a bug and keeps its traceback.
+Commands belong to their packages. Each package lists its command modules in the entry-point
+group :data:`COMMAND_GROUP` of its ``pyproject.toml``, one entry per module::
+
+    [project.entry-points."dg16m.commands"]
+    "dataset_gen.commands" = "dataset_gen.commands:register"
+    "mypackage.commands" = "mypackage.commands:register"
+
+where ``register(subparsers)`` adds the module's subcommands (built with :func:`add_command`).
+The CLI discovers the group with :func:`importlib.metadata.entry_points`, so ``dataset_gen``
+names no package above it and a new package adds commands without touching it.
+
+Order in ``dg16m --help``: ``dataset_gen``'s entries first (the base layer), then every other
+entry; each part sorted by entry-point name (by convention the module path, so commands group
+by package). A plugin that cannot be imported or whose ``register`` fails is reported on stderr
+by its entry-point name and value, and the other commands keep working.
+
+Exit status: 0 on success; ``dg16m`` without arguments prints this help and exits 0; errors
+caused by input (:class:`~dataset_gen.errors.Dg16mError`) print one line and exit 2 (so do
+argparse's usage errors); a command may return 1 for a finished run with failures (it says
+which); 130 on Ctrl-C; a closed output pipe (``dg16m ... | head``) ends quietly with 141, as a
+process killed by SIGPIPE. Anything else is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
+import os
 import sys
 import textwrap
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from importlib import metadata
 from typing import Any
 
 from dataset_gen.errors import Dg16mError
 
-COMMAND_MODULES: tuple[str, ...] = (
-    "dataset_gen.commands",
-    "dataset_gen.verify_command",
-    "dataset_gen.generate_command",
-    "dg16m_env.benchmark_command",
-    "dg16m_env.sim_command",
-)
-"""Modules that add subcommands, in the order they appear in ``dg16m --help``."""
+COMMAND_GROUP = "dg16m.commands"
+"""Entry-point group of the modules that add ``dg16m`` subcommands."""
+
+BASE_PACKAGE = "dataset_gen"
+"""This package: its commands come first in ``dg16m --help``."""
+
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, what a shell reports for a process killed by the signal
+
+
+@dataclass(frozen=True)
+class CommandPlugin:
+    """One entry of :data:`COMMAND_GROUP`: ``name = "module:function"``."""
+
+    name: str
+    value: str
+
+    @property
+    def is_base(self) -> bool:
+        return self.value.split(":", 1)[0].split(".", 1)[0] == BASE_PACKAGE
+
+    def load(self) -> Callable[[Any], None]:
+        """The ``register`` function; raises whatever importing the module raises."""
+        module_name, _, attr = self.value.partition(":")
+        if not module_name or not attr:
+            raise Dg16mError(f"expected 'module:function', found {self.value!r}")
+        return metadata.EntryPoint(self.name, self.value, COMMAND_GROUP).load()
+
+
+def command_plugins() -> list[CommandPlugin]:
+    """The installed command plugins in ``dg16m --help`` order (see the module docstring).
+
+    An entry installed twice (the same name and value from two copies of a distribution) is
+    listed once.
+    """
+    found = {
+        (ep.name, ep.value): CommandPlugin(ep.name, ep.value)
+        for ep in metadata.entry_points(group=COMMAND_GROUP)
+    }
+    return sorted(found.values(), key=lambda p: (not p.is_base, p.name, p.value))
 
 
 def add_command(
@@ -51,38 +103,133 @@ def add_command(
     )
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(
+    plugins: Sequence[CommandPlugin] | None = None,
+    on_broken: Callable[[CommandPlugin, BaseException], None] | None = None,
+) -> argparse.ArgumentParser:
+    """The ``dg16m`` parser with the subcommands of every plugin that loads.
+
+    Args:
+        plugins: the command plugins (default: :func:`command_plugins`).
+        on_broken: called with a plugin that cannot be imported or registered and the error
+            (default: a warning on stderr). Its commands are left out; the others still work.
+
+    Raises:
+        Dg16mError: no plugin registered any command (the package is not installed).
+    """
     parser = argparse.ArgumentParser(
         prog="dg16m",
-        description=(
+        description=textwrap.fill(
             "Make, check and benchmark dual-arm grasps (a reproduction of the DG16M dataset "
-            "and benchmark). Run 'dg16m COMMAND --help' for each command's options and examples."
+            "and benchmark). Run 'dg16m COMMAND --help' for each command's options and examples.",
+            88,
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=(
             "examples:\n"
             "  dg16m objects make --count 20 --seed 0 --out runs/objects\n"
-            "  dg16m show grasps.h5 --mesh airplane.obj --out grasps.png\n"
+            "  dg16m generate --procedural 20 --out runs/dataset --workers 2\n"
+            "  dg16m show runs/dataset/grasps/table-0000000.h5 \\\n"
+            "      --mesh runs/dataset/meshes/table-0000000.obj --out table.png\n"
         ),
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
-    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name in COMMAND_MODULES:
-        importlib.import_module(name).register(subparsers)
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    report = on_broken or _warn_broken
+    for plugin in command_plugins() if plugins is None else plugins:
+        before = dict(subparsers.choices)
+        try:
+            plugin.load()(subparsers)
+        except Exception as exc:  # a broken plugin must not take the other commands down
+            _forget_commands(subparsers, before)
+            report(plugin, exc)
+    if not subparsers.choices:
+        raise Dg16mError(
+            f"expected subcommands registered in the entry-point group {COMMAND_GROUP!r}, found "
+            "none (is the dg16m package installed? run: pip install -e .)"
+        )
     return parser
 
 
+def _forget_commands(subparsers: Any, before: dict[str, argparse.ArgumentParser]) -> None:
+    """Remove the subcommands a failing plugin added before it failed."""
+    added = set(subparsers.choices) - set(before)
+    for name in added:
+        del subparsers.choices[name]
+    subparsers._choices_actions[:] = [a for a in subparsers._choices_actions if a.dest not in added]
+
+
+def _warn_broken(plugin: CommandPlugin, exc: BaseException) -> None:
+    print(
+        f"dg16m: warning: command plugin {plugin.name!r} ({plugin.value}, entry-point group "
+        f"{COMMAND_GROUP!r}) failed to load and its commands are unavailable: "
+        f"{type(exc).__name__}: {exc} (reinstall with: pip install -e .)",
+        file=sys.stderr,
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    """Run ``dg16m`` with ``argv`` (default: the process arguments); returns the exit status."""
+    try:
+        code = _run(sys.argv[1:] if argv is None else list(argv))
+        sys.stdout.flush()  # a closed pipe shows up here, not at interpreter exit
+        return code
+    except SystemExit as exit_:  # argparse's --help, --version and usage errors
+        try:
+            sys.stdout.flush()
+        except BrokenPipeError:
+            return _quiet_broken_pipe()
+        raise exit_ from None
+    except BrokenPipeError:
+        if not _stdout_is_broken():
+            raise  # some other pipe (a worker, a socket): a real error
+        return _quiet_broken_pipe()
+
+
+def _run(argv: list[str]) -> int:
+    try:
+        parser = build_parser()
+    except Dg16mError as exc:
+        print(f"dg16m: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    if not argv:
+        parser.print_help()
+        return 0
     args = parser.parse_args(argv)
+    if getattr(args, "handler", None) is None:  # e.g. only global options were given
+        parser.print_help()
+        return 0
     try:
         return int(args.handler(args) or 0)
     except Dg16mError as exc:
         print(f"dg16m {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_USAGE
     except KeyboardInterrupt:
         print(f"dg16m {args.command}: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
+
+
+def _stdout_is_broken() -> bool:
+    """Whether standard output is a pipe whose reader has gone (POLLERR on its write end)."""
+    try:
+        import select
+
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(event & select.POLLERR for _, event in poller.poll(0))
+    except (AttributeError, OSError, ValueError):  # no poll() (Windows) or no real stdout
+        return True
+
+
+def _quiet_broken_pipe() -> int:
+    """Point stdout at /dev/null so the interpreter's final flush does not raise again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # stdout is not a real file (a test's capture)
+        pass
+    return EXIT_BROKEN_PIPE
 
 
 def _version() -> str:

@@ -7,28 +7,22 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from dataset_gen.checks import check_integer, check_number
+from dataset_gen.cli import add_command
 from dataset_gen.errors import Dg16mError, MeshError
+from dataset_gen.parameters import PAPER
+
+DEFAULT_TRAIN_COUNT = 20
+"""Objects made by ``dg16m objects make`` on the train split when ``--count`` is not given."""
 
 
-def _add(
-    subparsers, name: str, help_text: str, examples: str, **kwargs: Any
-) -> argparse.ArgumentParser:
-    return subparsers.add_parser(
-        name,
-        help=help_text,
-        description=help_text,
-        epilog="examples:\n" + examples,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        **kwargs,
-    )
-
-
-def register(subparsers) -> None:
+def register(subparsers: Any) -> None:
     """Add this package's subcommands to the ``dg16m`` parser."""
-    objects = _add(
+    objects = add_command(
         subparsers,
         "objects",
         "Make, check and look at objects (the embedded procedural library or your meshes).",
@@ -37,8 +31,16 @@ def register(subparsers) -> None:
         "  dg16m objects check my_meshes/*.obj --scale 0.001\n",
     )
     actions = objects.add_subparsers(dest="action", metavar="ACTION", required=True)
+    _register_objects_make(actions)
+    _register_objects_show(actions)
+    _register_objects_check(actions)
+    _register_show(subparsers)
+    _register_inspect(subparsers)
+    _register_grippers(subparsers)
 
-    make = _add(
+
+def _register_objects_make(actions: Any) -> None:
+    make = add_command(
         actions,
         "make",
         "Write procedural objects (meshes, convex parts, manifest) into a folder.",
@@ -49,7 +51,7 @@ def register(subparsers) -> None:
         "--count",
         type=int,
         default=None,
-        help="number of objects (default: 20 for train, 300 for benchmark)",
+        help=f"number of objects (default: {DEFAULT_TRAIN_COUNT} for train, all 300 for benchmark)",
     )
     make.add_argument(
         "--seed",
@@ -64,14 +66,19 @@ def register(subparsers) -> None:
         help="which split (default: train)",
     )
     make.add_argument(
-        "--mass", type=float, default=6.0, help="object mass in kg (default: 6, the release value)"
+        "--mass",
+        type=float,
+        default=PAPER.mass,
+        help=f"object mass in kg (default: {PAPER.mass:g}, the release value)",
     )
     make.add_argument(
         "--out", type=Path, required=True, help="output folder (reruns keep finished objects)"
     )
     make.set_defaults(handler=_objects_make)
 
-    show = _add(
+
+def _register_objects_show(actions: Any) -> None:
+    show = add_command(
         actions,
         "show",
         "Render a contact sheet of the objects of a folder to a PNG.",
@@ -80,17 +87,27 @@ def register(subparsers) -> None:
     show.add_argument("folder", type=Path, help="folder written by 'dg16m objects make'")
     show.add_argument("--out", type=Path, required=True, help="PNG to write")
     show.add_argument(
-        "--limit", type=int, default=30, help="at most this many objects (default: 30)"
+        "--limit", type=int, default=30, help="at most this many objects, >= 1 (default: 30)"
     )
     show.add_argument("--columns", type=int, default=5, help="objects per row (default: 5)")
     show.set_defaults(handler=_objects_show)
 
-    check = _add(
+
+def _register_objects_check(actions: Any) -> None:
+    check = add_command(
         actions,
         "check",
         "Load mesh files as dg16m would and report size, mass properties and defects.",
         "  dg16m objects check ../shared/data/real/dg16m_airplane.obj\n"
-        "  dg16m objects check mug.obj --scale 0.000268\n",
+        "  dg16m objects check box_in_millimetres.obj --scale 0.001\n"
+        "  dg16m objects check ../shared/data/real/acronym_mug_10f6e090.obj \\\n"
+        "      --scale 0.000268 --allow-any-size   # a single-arm object\n",
+        description=(
+            "Load mesh files as dg16m would and report size, mass properties and defects. A "
+            "longest side outside the plausible range of a dual-arm object (0.05-5 m) is an "
+            "error that suggests a --scale (files in millimetres need --scale 0.001) unless "
+            "--allow-any-size is given. Exit status: 0 when every mesh loads, 1 otherwise."
+        ),
     )
     check.add_argument("meshes", nargs="+", type=Path, help="mesh files (OBJ, STL, PLY, OFF, GLB)")
     scale = check.add_mutually_exclusive_group()
@@ -100,21 +117,38 @@ def register(subparsers) -> None:
     scale.add_argument(
         "--target-extent", type=float, default=None, help="scale so the longest side is this many m"
     )
-    check.add_argument("--mass", type=float, default=6.0, help="kg (default: 6)")
+    check.add_argument(
+        "--allow-any-size",
+        action="store_true",
+        help="accept a longest side outside 0.05-5 m (still within 1 mm - 100 m)",
+    )
+    check.add_argument(
+        "--mass", type=float, default=PAPER.mass, help=f"kg (default: {PAPER.mass:g})"
+    )
     check.set_defaults(handler=_objects_check)
 
-    show_grasps = _add(
+
+def _register_show(subparsers: Any) -> None:
+    show_grasps = add_command(
         subparsers,
         "show",
         "Render dual grasps of a DG16M file on its object to a PNG (passing vs failing).",
         "  dg16m show ../shared/data/real/dg16m_airplane.h5 \\\n"
         "      --mesh ../shared/data/real/dg16m_airplane.obj --out airplane.png --n 20\n",
+        description=(
+            "Render dual grasps of a DG16M file on its object to a PNG: passing pairs in the "
+            "left panel, failing pairs in the right one."
+        ),
     )
     show_grasps.add_argument("file", type=Path, help="DG16M release-schema HDF5 file")
     show_grasps.add_argument("--mesh", type=Path, required=True, help="the object's mesh file")
     show_grasps.add_argument("--out", type=Path, required=True, help="PNG to write")
     show_grasps.add_argument(
-        "--n", type=int, default=20, help="number of dual grasps drawn (default: 20)"
+        "--n",
+        type=int,
+        default=20,
+        help="dual grasps drawn in all: N/2 passing (left) and N/2 failing (right); when one "
+        "class has fewer, the other fills its slots (default: 20, i.e. 10 + 10)",
     )
     show_grasps.add_argument(
         "--seed", type=int, default=0, help="which grasps are drawn (default: 0)"
@@ -122,14 +156,17 @@ def register(subparsers) -> None:
     show_grasps.add_argument(
         "--gripper",
         default=None,
-        help="gripper drawn: panda or robotiq_2f85 (default: the file's, else robotiq_2f85 as in the release)",
+        help="gripper drawn: panda or robotiq_2f85 (default: the file's, else robotiq_2f85 as "
+        "in the release)",
     )
     show_grasps.add_argument(
         "--view", default="25,-60", help="elevation,azimuth in degrees (default: 25,-60)"
     )
     show_grasps.set_defaults(handler=_show)
 
-    inspect = _add(
+
+def _register_inspect(subparsers: Any) -> None:
+    inspect = add_command(
         subparsers,
         "inspect",
         "Validate a grasp file (DG16M release schema or ACRONYM) and print a summary.",
@@ -139,15 +176,20 @@ def register(subparsers) -> None:
     inspect.add_argument("file", type=Path, help="HDF5 grasp file")
     inspect.set_defaults(handler=_inspect)
 
-    grippers = _add(
+
+def _register_grippers(subparsers: Any) -> None:
+    grippers = add_command(
         subparsers,
         "grippers",
-        "List the gripper models and their dimensions (grasp frame convention in dataset_gen.gripper).",
+        "List the gripper models and their dimensions (grasp frame convention in "
+        "dataset_gen.gripper).",
         "  dg16m grippers\n",
     )
     grippers.set_defaults(handler=_grippers)
 
 
+# --------------------------------------------------------------------------------------------
+# Handlers
 # --------------------------------------------------------------------------------------------
 
 
@@ -157,13 +199,15 @@ def _objects_make(args: argparse.Namespace) -> int:
     from dataset_gen import procedural
     from dataset_gen.library import write_procedural_library
 
-    count = args.count if args.count is not None else (300 if args.split == "benchmark" else 20)
+    default_count = procedural.BENCHMARK_SIZE if args.split == "benchmark" else DEFAULT_TRAIN_COUNT
+    count = args.count if args.count is not None else default_count
     if count <= 0:
         raise MeshError(f"--count: expected a positive number of objects, found {count}")
+    mass = check_number("--mass", args.mass, error=MeshError)
     specs = procedural.object_specs(count, seed=args.seed, split=args.split)  # ProceduralError
     with tqdm(total=len(specs), unit="obj", desc="objects", disable=None) as bar:
         manifest = write_procedural_library(
-            args.out, specs, mass=args.mass, on_object=lambda _: bar.update()
+            args.out, specs, mass=mass, on_object=lambda _: bar.update()
         )
     families = sorted({family for family, _ in specs})
     print(
@@ -176,10 +220,14 @@ def _objects_show(args: argparse.Namespace) -> int:
     from dataset_gen.library import load_library
     from dataset_gen.render import render_objects
 
-    objects = load_library(args.folder, limit=max(args.limit, 0))
+    limit = check_integer("--limit", args.limit, minimum=1, error=Dg16mError)
+    columns = check_integer("--columns", args.columns, minimum=1, error=Dg16mError)
+    objects = load_library(args.folder, limit=limit)
     if not objects:
-        raise MeshError(f"{args.folder}: expected at least one object in the manifest, found none")
-    out = render_objects([(o.object_id, o.mesh) for o in objects], args.out, columns=args.columns)
+        raise MeshError(
+            f"{args.folder}: expected at least one ok object in the manifest, found none"
+        )
+    out = render_objects([(o.object_id, o.mesh) for o in objects], args.out, columns=columns)
     print(f"wrote {out} ({len(objects)} objects)")
     return 0
 
@@ -187,29 +235,50 @@ def _objects_show(args: argparse.Namespace) -> int:
 def _objects_check(args: argparse.Namespace) -> int:
     from dataset_gen.objects import load_object
 
+    mass = check_number("--mass", args.mass, error=MeshError)
     failures = 0
     for path in args.meshes:
         try:
             obj = load_object(
-                path, scale=args.scale, target_extent=args.target_extent, mass=args.mass
+                path,
+                scale=args.scale,
+                target_extent=args.target_extent,
+                mass=mass,
+                allow_any_size=args.allow_any_size,
             )
         except MeshError as exc:
             failures += 1
             print(f"FAIL {exc}")
             continue
-        props = obj.mass_properties
-        ext = " x ".join(f"{e:.3f}" for e in obj.extents)
-        cleaned = ", ".join(f"{k}={v}" for k, v in vars(obj.cleaning).items() if v) or "nothing"
-        print(
-            f"ok   {path}: {len(obj.mesh.vertices)} vertices, {len(obj.mesh.faces)} faces, "
-            f"{ext} m, scale {obj.scale:g}, watertight {obj.is_watertight}, "
-            f"{props.model} mass model, centre of mass {props.center_of_mass.round(4).tolist()} m; "
-            f"cleaned: {cleaned}"
-        )
+        print(f"ok   {path}: {describe_object(obj)}")
     if failures:
         print(f"{failures} of {len(args.meshes)} meshes failed", file=sys.stderr)
         return 1
     return 0
+
+
+def describe_object(obj: Any) -> str:
+    """One line about a loaded :class:`~dataset_gen.objects.GraspObject`, for people."""
+    props = obj.mass_properties
+    size = " x ".join(f"{e:.3f}" for e in obj.extents)
+    com = ", ".join(f"{0.0 if abs(c) < 5e-5 else c:.4f}" for c in props.center_of_mass)
+    cleaning = obj.cleaning
+    changes = [
+        f"{count} {what}"
+        for count, what in (
+            (cleaning.merged_vertices, "duplicate vertices merged"),
+            (cleaning.degenerate_faces, "degenerate faces dropped"),
+            (cleaning.duplicate_faces, "duplicate faces dropped"),
+            (cleaning.unreferenced_vertices, "unreferenced vertices dropped"),
+        )
+        if count
+    ]
+    return (
+        f"{len(obj.mesh.vertices)} vertices, {len(obj.mesh.faces)} faces; {size} m "
+        f"(scale {obj.scale:g}); {'watertight' if obj.is_watertight else 'NOT watertight'}, "
+        f"{props.model} mass model, {props.mass:g} kg, centre of mass ({com}) m; "
+        f"cleaning: {', '.join(changes) or 'nothing to clean'}"
+    )
 
 
 def _parse_view(text: str) -> tuple[float, float]:
@@ -225,12 +294,14 @@ def _parse_view(text: str) -> tuple[float, float]:
 def _show(args: argparse.Namespace) -> int:
     from dataset_gen import io
     from dataset_gen.objects import load_object
-    from dataset_gen.render import render_dual_grasps
+    from dataset_gen.render import render_dual_grasps, select_pairs
 
     if args.n <= 0:
         raise Dg16mError(f"--n: expected a positive number of grasps, found {args.n}")
+    view = _parse_view(args.view)
     data = io.read_dg16m(args.file)
-    obj = load_object(args.mesh, scale=data.object_scale)
+    # The grasp file's scale is authoritative: no size guess applies to it.
+    obj = load_object(args.mesh, scale=data.object_scale, allow_any_size=True)
     gripper = args.gripper or data.metadata.get("gripper", "robotiq_2f85")
     out = render_dual_grasps(
         obj.mesh,
@@ -242,46 +313,65 @@ def _show(args: argparse.Namespace) -> int:
         n=args.n,
         seed=args.seed,
         title=f"{args.file.name} on {args.mesh.name}: {data.n} dual grasps ({gripper})",
-        view=_parse_view(args.view),
+        view=view,
     )
-    print(f"wrote {out}")
+    passing, failing = select_pairs(data.passed, args.n, args.seed)
+    print(f"wrote {out}: {len(passing)} passing + {len(failing)} failing of {data.n} dual grasps")
     return 0
 
 
 def _inspect(args: argparse.Namespace) -> int:
-    import h5py
-    import numpy as np
-
     from dataset_gen import io
 
     kind = io.detect_format(args.file)
     if kind == "acronym":
-        acr = io.read_acronym(args.file)
-        print(f"{args.file}: ACRONYM single-arm grasps")
-        print(f"  grasps        {len(acr.transforms)} (flex success {acr.success.mean():.1%})")
-        print(f"  object        {acr.object_file} (scale {acr.object_scale:g})")
-        print(f"  gripper       {acr.gripper_type}")
+        _print_acronym(args.file, io.read_acronym(args.file))
         return 0
-    data = io.read_dg16m(args.file)
+    _print_dg16m(args.file, io.read_dg16m(args.file))
+    return 0
+
+
+def _print_acronym(path: Path, acr: Any) -> None:
+    n = len(acr.transforms)
+    rate = f" (flex success {acr.success.mean():.1%})" if n else ""
+    print(f"{path}: ACRONYM single-arm grasps")
+    print(f"  grasps        {n}{rate}")
+    print(f"  object        {acr.object_file} (scale {acr.object_scale:g})")
+    print(f"  gripper       {acr.gripper_type}")
+
+
+def _print_dg16m(path: Path, data: Any) -> None:
+    import h5py
+    import numpy as np
+
     loss = data.loss_values
-    print(f"{args.file}: DG16M release schema, valid")
+    print(f"{path}: DG16M release schema, valid")
     print(
-        f"  dual grasps   {data.n} ({len(data.passing_indices)} passing, {len(data.failed_indices)} failing)"
+        f"  dual grasps   {data.n} ({len(data.passing_indices)} passing, "
+        f"{len(data.failed_indices)} failing)"
     )
     print(f"  object        {data.object_file} (scale {data.object_scale:g})")
     if len(data.passing_indices):
-        print(f"  passing loss  max {loss[data.passing_indices].max():.3g}")
+        print(f"  passing loss  max {loss[data.passing_indices].max():.3g} N")
     if len(data.failed_indices):
-        print(f"  failing loss  min {loss[data.failed_indices].min():.3g}")
-    width = np.linalg.norm(data.contact_points[:, 0] - data.contact_points[:, 1], axis=-1)
-    print(f"  grasp widths  {width.min():.4f} .. {width.max():.4f} m")
-    if data.extras or data.metadata:
-        print(f"  dg16m extras  {sorted(data.extras)}; metadata keys {sorted(data.metadata)}")
-    with h5py.File(args.file, "r") as handle:
+        print(f"  failing loss  min {loss[data.failed_indices].min():.3g} N")
+    if data.n:
+        width = np.linalg.norm(data.contact_points[:, 0] - data.contact_points[:, 1], axis=-1)
+        print(f"  grasp widths  {width.min():.4f} .. {width.max():.4f} m")
+    else:
+        print("  grasp widths  - (the file stores no dual grasps)")
+    if data.extras:
+        print(f"  dg16m extras  {_names(data.extras)}")
+    if data.metadata:
+        print(f"  metadata      {_names(data.metadata)}")
+    with h5py.File(path, "r") as handle:
         unknown = sorted(set(handle.keys()) - {"grasps", "object", "dg16m"})
     if unknown:
-        print(f"  other groups  {unknown} (ignored)")
-    return 0
+        print(f"  other groups  {_names(unknown)} (ignored)")
+
+
+def _names(items: Sequence[str] | dict[str, Any]) -> str:
+    return ", ".join(sorted(items))
 
 
 def _grippers(args: argparse.Namespace) -> int:
@@ -289,9 +379,9 @@ def _grippers(args: argparse.Namespace) -> int:
 
     for model in GRIPPERS.values():
         print(
-            f"{model.name:14s} opening {model.max_opening * 1000:.0f} mm, palm face y={model.palm_depth:.4f} m, "
-            f"contacts y={model.contact_depth:.4f} m, fingertips y={model.finger_tip:.4f} m, "
-            f"force {model.max_force:.0f} N"
+            f"{model.name:14s} opening {model.max_opening * 1000:.0f} mm, "
+            f"palm face y={model.palm_depth:.4f} m, contacts y={model.contact_depth:.4f} m, "
+            f"fingertips y={model.finger_tip:.4f} m, force {model.max_force:.0f} N"
         )
         print(f"{'':14s} {model.description}")
     return 0

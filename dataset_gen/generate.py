@@ -1,9 +1,10 @@
 """The offline generator: meshes or procedural objects in, one release-schema HDF5 per object out.
 
 Per object (:func:`generate_object`): antipodal single-arm sampling, all unique pairs with the
-0.1 m centre pruning and gripper-gripper collision rejection, force closure on every candidate
-(verdict-only), then up to 2000 passing and 2000 failing pairs (failing losses proven > 0.5 and
-computed exactly). The result is a :class:`~dataset_gen.io.DualGraspSet` in the release schema
+grasp-centre pruning and gripper-gripper collision rejection, force closure on every candidate
+(verdict-only), then up to ``max_passing`` passing and ``max_failing`` failing pairs (failing
+losses proven > ``failing_min_loss`` and computed exactly). The defaults are the release's
+(:data:`~dataset_gen.parameters.PAPER`). The result is a :class:`~dataset_gen.io.DualGraspSet` in the release schema
 with our extras under ``dg16m/``.
 
 A dataset run (:func:`generate_dataset`) maps that task over objects with a local process pool or
@@ -12,7 +13,8 @@ each file do not depend on the worker count, the order or the backend. Files are
 atomically and the folder's ``manifest.json`` is rewritten after each object by the parent
 process only; a rerun skips objects whose entry is ``ok`` and whose file exists, so an
 interrupted run (even ``kill -9``) resumes to the same bytes. An object that cannot be loaded or
-processed (a broken mesh) is recorded as ``failed`` with its reason and does not stop the run.
+processed (a broken mesh, an implausible size) or that yields no dual grasp to store is recorded
+as ``failed`` with its reason and does not stop the run.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from typing import Any, Literal
 import numpy as np
 
 from .atomic import write_bytes_atomic
+from .checks import check_fields
 from .errors import Dg16mError
 from .io import (
     DualGraspSet,
@@ -36,10 +39,13 @@ from .io import (
 from .objects import GraspObject
 from .pairing import candidate_pairs, dual_contacts, dual_poses, score_pairs, select_pairs
 from .parallel import Backend, run_resumable
+from .parameters import PAPER
 from .sampling import sample_antipodal_grasps
 from .sources import ObjectSource, object_seed
 
 GRASPS_FOLDER = "grasps"
+
+CONVENTIONS: tuple[str, ...] = ("physical", "release")
 
 
 class GenerationError(Dg16mError, ValueError):
@@ -50,46 +56,72 @@ class GenerationError(Dg16mError, ValueError):
 class GenerationParameters:
     """Everything that decides a generated file's bytes (besides the object and package version).
 
+    Defaults are the DG16M release's (:data:`~dataset_gen.parameters.PAPER`) except the
+    convention and the gripper-collision check, which are physical by default.
+
     Attributes:
         seed: global seed; each object's stream is derived from (seed, object id).
         gripper: gripper model name (``dataset_gen.gripper.GRIPPERS``).
-        n_grasps: single-arm grasps sampled per object (the release: 500).
+        n_grasps: single-arm grasps sampled per object (at least 2).
         mu: friction coefficient for sampling and force closure.
-        mass: object mass for the gravity wrench (kg; the release: 6).
-        gravity: m/s^2 (the release: 10).
-        f_high: force bound per contact (N; the release: 70).
-        threshold: force-closure threshold on the residual norm (the release: 1e-5).
+        mass: object mass for the gravity wrench (kg).
+        gravity: m/s^2.
+        f_high: force bound per contact (N).
+        threshold: force-closure threshold on the residual norm (N).
         convention: ``"physical"`` or ``"release"`` friction cones.
-        min_center_distance: grasp-centre pruning distance (m; the release: 0.1).
+        min_center_distance: grasp-centre pruning distance (m; 0 prunes nothing).
         check_gripper_collision: reject pairs whose grippers collide (the release does not).
-        max_passing, max_failing: pairs kept per object (the release: 2000 each).
-        failing_min_loss: failing pairs kept must have a loss above this (the release: 0.5).
+        max_passing, max_failing: pairs kept per object.
+        failing_min_loss: failing pairs kept must have a loss above this (N; may be 0).
+
+    Raises:
+        GenerationError: a value of the wrong type or out of range ("NAME: expected X, found Y").
     """
 
     seed: int = 0
     gripper: str = "panda"
-    n_grasps: int = 500
-    mu: float = 0.4
-    mass: float = 6.0
-    gravity: float = 10.0
-    f_high: float = 70.0
-    threshold: float = 1e-5
+    n_grasps: int = PAPER.n_grasps
+    mu: float = PAPER.mu
+    mass: float = PAPER.mass
+    gravity: float = PAPER.gravity
+    f_high: float = PAPER.f_high
+    threshold: float = PAPER.threshold
     convention: Literal["physical", "release"] = "physical"
-    min_center_distance: float = 0.1
+    min_center_distance: float = PAPER.min_center_distance
     check_gripper_collision: bool = True
-    max_passing: int = 2000
-    max_failing: int = 2000
-    failing_min_loss: float = 0.5
+    max_passing: int = PAPER.max_passing
+    max_failing: int = PAPER.max_failing
+    failing_min_loss: float = PAPER.failing_min_loss
 
     def __post_init__(self) -> None:
-        for name in ("n_grasps", "max_passing", "max_failing"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or value < 0 or (name == "n_grasps" and value < 2):
-                raise GenerationError(
-                    f"{name}: expected an integer >= {2 if name == 'n_grasps' else 0}, found {value!r}"
-                )
-        if not isinstance(self.seed, int) or self.seed < 0:
-            raise GenerationError(f"seed: expected an integer >= 0, found {self.seed!r}")
+        check_fields(
+            self,
+            error=GenerationError,
+            integers={"seed": 0, "n_grasps": 2, "max_passing": 0, "max_failing": 0},
+            zero_allowed=("min_center_distance", "failing_min_loss"),
+            skip=("gripper", "convention", "check_gripper_collision"),
+        )
+        if self.convention not in CONVENTIONS:
+            raise GenerationError(
+                f"convention: expected one of {CONVENTIONS}, found {self.convention!r}"
+            )
+        if not isinstance(self.check_gripper_collision, bool):
+            raise GenerationError(
+                "check_gripper_collision: expected True or False, found "
+                f"{self.check_gripper_collision!r}"
+            )
+        if not isinstance(self.gripper, str) or not self.gripper:
+            raise GenerationError(f"gripper: expected a gripper name, found {self.gripper!r}")
+
+    def force_closure_kwargs(self) -> dict[str, float]:
+        """The force-closure check's keyword arguments (mass, gravity, mu, f_high, threshold)."""
+        return {
+            "mass": self.mass,
+            "gravity": self.gravity,
+            "mu": self.mu,
+            "f_high": self.f_high,
+            "threshold": self.threshold,
+        }
 
 
 @dataclass
@@ -128,7 +160,7 @@ def generate_object(
         ``single_contact_points`` / ``single_contact_normals`` (M, 2, 3), ``single_widths`` (M,),
         ``pair_indices`` (S, 2) rows of the single grasps, ``contact_normals`` (S, 4, 3) outward
         normals used by the check, ``quality`` (S,) Q(G); metadata holds the parameters, the
-        seeds, per-stage counts and the package version.
+        seeds, per-stage counts and the package version. S may be 0 (see :func:`no_pairs_reason`).
     """
     times = times if times is not None else StageTimes()
     rng = np.random.default_rng(object_seed(params.seed, obj.object_id))
@@ -147,17 +179,27 @@ def generate_object(
     times.pairing = time.perf_counter() - start
 
     start = time.perf_counter()
-    fc_kwargs = {
-        "mass": params.mass,
-        "gravity": params.gravity,
-        "mu": params.mu,
-        "f_high": params.f_high,
-        "threshold": params.threshold,
-    }
-    result = score_pairs(grasps, candidates.pairs, convention=params.convention, **fc_kwargs)
+    result = score_pairs(
+        grasps, candidates.pairs, convention=params.convention, **params.force_closure_kwargs()
+    )
     times.force_closure = time.perf_counter() - start
 
     start = time.perf_counter()
+    data = _select_and_assemble(obj, params, grasps, candidates, result, rng, object_file)
+    times.selection = time.perf_counter() - start
+    return data
+
+
+def _select_and_assemble(
+    obj: GraspObject,
+    params: GenerationParameters,
+    grasps: Any,
+    candidates: Any,
+    result: Any,
+    rng: np.random.Generator,
+    object_file: str,
+) -> DualGraspSet:
+    """Keep up to ``max_passing`` + ``max_failing`` scored candidates and build the file's data."""
     points, normals = dual_contacts(grasps, candidates.pairs)
     selection = select_pairs(
         result,
@@ -179,7 +221,7 @@ def generate_object(
         "passing": int(result.passed.sum()),
         **{f"selection_{k}": int(v) for k, v in selection.counts.items()},
     }
-    data = DualGraspSet(
+    return DualGraspSet(
         grasps=dual_poses(grasps, pairs),
         contact_points=points[rows],
         contact_forces=selection.contact_forces,
@@ -206,18 +248,54 @@ def generate_object(
             "generator": f"dg16m {package_version()}",
         },
     )
-    times.selection = time.perf_counter() - start
-    return data
+
+
+def no_pairs_reason(counts: dict[str, int], params: GenerationParameters) -> str:
+    """Why an object yielded no dual grasp to store, from its per-stage ``counts``."""
+    sampled = counts.get("sampled", 0)
+    if sampled < 2:
+        return (
+            f"no dual grasps: expected at least 2 single-arm grasps, found {sampled} (of "
+            f"{params.n_grasps} asked): is the object's size right for the {params.gripper} "
+            "gripper?"
+        )
+    pairs = counts.get("pairs_pairs", 0)
+    pruned = counts.get("pairs_pruned_distance", 0)
+    collide = counts.get("pairs_gripper_collision", 0)
+    remaining = counts.get("pairs_remaining", 0)
+    if remaining == 0:
+        return (
+            f"no dual grasps: {sampled} single-arm grasps give {pairs} pairs, {pruned} with "
+            f"grasp centres closer than {params.min_center_distance:g} m and {collide} whose "
+            "grippers collide, none left: is the object too small for two hands?"
+        )
+    return (
+        f"no dual grasps: {remaining} candidate pairs, {counts.get('passing', 0)} passing force "
+        f"closure, none kept (at most {params.max_passing} passing and {params.max_failing} "
+        f"failing pairs with a loss above {params.failing_min_loss:g} N)"
+    )
 
 
 def _task(source: ObjectSource, out: str, params: GenerationParameters) -> dict[str, Any]:
-    """Load, generate and write one object; returns its manifest entry."""
+    """Load, generate and write one object; returns its manifest entry.
+
+    An object that cannot be loaded or yields no dual grasp is ``failed`` with its reason (no
+    file is written, and a rerun tries it again).
+    """
     relative = f"{GRASPS_FOLDER}/{source.object_id}.h5"
     try:
         obj = source.load(params.mass)
         data = generate_object(obj, params, object_file=source.object_file)
     except Dg16mError as exc:  # a broken mesh (or an unusable object) fails only its own entry
         return {"status": "failed", "files": {}, "error": str(exc)}
+    counts = data.metadata["counts"]
+    if data.n == 0:
+        return {
+            "status": "failed",
+            "files": {},
+            "error": no_pairs_reason(counts, params),
+            "counts": counts,
+        }
     files = {"grasps": relative}
     if source.mesh is None:  # procedural: store the mesh so the folder is self-contained
         files["mesh"] = source.object_file
@@ -229,7 +307,7 @@ def _task(source: ObjectSource, out: str, params: GenerationParameters) -> dict[
         "pairs": data.n,
         "passing": int(data.passing_indices.size),
         "failing": int(data.failed_indices.size),
-        "counts": data.metadata["counts"],
+        "counts": counts,
     }
 
 

@@ -8,6 +8,10 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
+
+from .cli import add_command
+from .parameters import PAPER
 
 GENERATE_EXAMPLES = (
     "  # 20 procedural training objects on 2 local processes\n"
@@ -19,24 +23,48 @@ GENERATE_EXAMPLES = (
     "  # rerun the same command to resume an interrupted run: finished objects are skipped\n"
 )
 
+GENERATE_DESCRIPTION = (
+    "Sample antipodal single-arm grasps, pair them (all unique pairs, "
+    f"{PAPER.min_center_distance:g} m centre pruning, gripper-gripper collision), check force "
+    f"closure on every candidate and keep up to {PAPER.max_passing} passing and "
+    f"{PAPER.max_failing} failing pairs per object (the release's values). Writes "
+    "OUT/grasps/<id>.h5 (and OUT/meshes/<id>.obj for procedural objects) and OUT/manifest.json. "
+    "Results do not depend on --workers or --backend; reruns skip finished objects. An object "
+    "that cannot be loaded (a broken mesh, an implausible size) or yields no dual grasp fails "
+    "only itself: it is recorded as failed in the manifest with its reason and retried by a "
+    "rerun. Exit status: 0 when every object is ok, 1 when any object failed (each is listed), "
+    "2 for unusable input."
+)
+
 STATS_EXAMPLES = "  dg16m stats runs/dataset --out runs/dataset_stats\n"
 
 
-def register(subparsers) -> None:
+def register(subparsers: Any) -> None:
     """Add ``dg16m generate`` and ``dg16m stats``."""
-    gen = subparsers.add_parser(
-        "generate",
-        help="Generate dual-arm grasps (one release-schema HDF5 per object) from meshes or "
-        "procedural objects.",
+    _register_generate(subparsers)
+    stats = add_command(
+        subparsers,
+        "stats",
+        "Counts and plots of a generated dataset (Q(G) histogram, passes per object, losses).",
+        STATS_EXAMPLES,
         description=(
-            "Sample antipodal single-arm grasps, pair them (all unique pairs, 0.1 m centre "
-            "pruning, gripper-gripper collision), check force closure on every candidate and keep "
-            "up to 2000 passing and 2000 failing pairs per object. Writes OUT/grasps/<id>.h5 and "
-            "OUT/manifest.json. Results do not depend on --workers or --backend; reruns skip "
-            "finished objects; a broken mesh fails only its own object (recorded in the manifest)."
+            "Print per-dataset counts and write quality_hist.png (the paper's Fig. 4: Q(G) of "
+            "passing vs failing pairs), passes_per_object.png, loss_hist.png and stats.json."
         ),
-        epilog="examples:\n" + GENERATE_EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    stats.add_argument("folder", type=Path, metavar="DIR", help="a folder made by dg16m generate")
+    stats.add_argument("--out", type=Path, required=True, help="folder for the plots")
+    stats.set_defaults(handler=_stats)
+
+
+def _register_generate(subparsers: Any) -> None:
+    gen = add_command(
+        subparsers,
+        "generate",
+        "Generate dual-arm grasps (one release-schema HDF5 per object) from meshes or "
+        "procedural objects.",
+        GENERATE_EXAMPLES,
+        description=GENERATE_DESCRIPTION,
     )
     source = gen.add_mutually_exclusive_group(required=True)
     source.add_argument("--meshes", type=Path, help="folder of mesh files (one object each)")
@@ -50,12 +78,22 @@ def register(subparsers) -> None:
         help="procedural split (benchmark: the fixed 300 objects; N then takes the first N)",
     )
     gen.add_argument("--scale", type=float, default=None, help="scale for --meshes files")
+    gen.add_argument(
+        "--allow-any-size",
+        action="store_true",
+        help="accept --meshes objects whose longest side is outside 0.05-5 m",
+    )
     gen.add_argument("--out", type=Path, required=True, help="dataset folder")
-    gen.add_argument("--workers", type=int, default=1, help="local processes (default 1)")
+    gen.add_argument("--workers", type=int, default=1, help="local processes (default: 1)")
     gen.add_argument("--backend", choices=("local", "ray"), default="local")
     gen.add_argument("--address", default=None, help="Ray address: auto or host:port")
-    gen.add_argument("--seed", type=int, default=0, help="global seed (default 0)")
-    gen.add_argument("--grasps", type=int, default=500, help="single-arm grasps per object")
+    gen.add_argument("--seed", type=int, default=0, help="global seed (default: 0)")
+    gen.add_argument(
+        "--grasps",
+        type=int,
+        default=PAPER.n_grasps,
+        help=f"single-arm grasps per object (default: {PAPER.n_grasps})",
+    )
     gen.add_argument("--gripper", default="panda", help="gripper model (see dg16m grippers)")
     gen.add_argument(
         "--convention",
@@ -68,30 +106,24 @@ def register(subparsers) -> None:
         action="store_true",
         help="keep pairs whose two grippers intersect (as the release does)",
     )
-    gen.add_argument("--max-passing", type=int, default=2000)
-    gen.add_argument("--max-failing", type=int, default=2000)
+    gen.add_argument(
+        "--max-passing",
+        type=int,
+        default=PAPER.max_passing,
+        help=f"passing pairs kept per object (default: {PAPER.max_passing})",
+    )
+    gen.add_argument(
+        "--max-failing",
+        type=int,
+        default=PAPER.max_failing,
+        help=f"failing pairs kept per object (default: {PAPER.max_failing})",
+    )
     gen.add_argument("--no-progress", action="store_true", help="no progress bar")
     gen.set_defaults(handler=_generate)
-
-    stats = subparsers.add_parser(
-        "stats",
-        help="Counts and plots of a generated dataset (Q(G) histogram, passes per object, losses).",
-        description=(
-            "Print per-dataset counts and write quality_hist.png (the paper's Fig. 4: Q(G) of "
-            "passing vs failing pairs), passes_per_object.png, loss_hist.png and stats.json."
-        ),
-        epilog="examples:\n" + STATS_EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    stats.add_argument("folder", type=Path, metavar="DIR", help="a folder made by dg16m generate")
-    stats.add_argument("--out", type=Path, required=True, help="folder for the plots")
-    stats.set_defaults(handler=_stats)
 
 
 def _generate(args: argparse.Namespace) -> int:
     from .generate import GenerationParameters, generate_dataset
-    from .procedural import benchmark_specs, object_specs
-    from .sources import mesh_sources, procedural_sources
 
     params = GenerationParameters(
         seed=args.seed,
@@ -102,20 +134,8 @@ def _generate(args: argparse.Namespace) -> int:
         max_passing=args.max_passing,
         max_failing=args.max_failing,
     )
-    if args.meshes is not None:
-        sources = mesh_sources(args.meshes, scale=args.scale)
-    else:
-        if args.procedural < 1:
-            from .generate import GenerationError
-
-            raise GenerationError(f"--procedural: expected N >= 1, found {args.procedural}")
-        if args.split == "benchmark":
-            specs = benchmark_specs()[: args.procedural]
-        else:
-            specs = object_specs(args.procedural, seed=args.seed, split="train")
-        sources = procedural_sources(specs)
     manifest = generate_dataset(
-        sources,
+        _sources(args),
         args.out,
         params,
         workers=args.workers,
@@ -123,26 +143,51 @@ def _generate(args: argparse.Namespace) -> int:
         address=args.address,
         progress=not args.no_progress,
     )
+    return _report(args.out, manifest)
+
+
+def _sources(args: argparse.Namespace) -> list[Any]:
+    from .generate import GenerationError
+    from .procedural import benchmark_specs, object_specs
+    from .sources import mesh_sources, procedural_sources
+
+    if args.meshes is not None:
+        return mesh_sources(args.meshes, scale=args.scale, allow_any_size=args.allow_any_size)
+    if args.procedural < 1:
+        raise GenerationError(f"--procedural: expected N >= 1, found {args.procedural}")
+    if args.split == "benchmark":
+        specs = benchmark_specs()[: args.procedural]
+    else:
+        specs = object_specs(args.procedural, seed=args.seed, split="train")
+    return procedural_sources(specs)
+
+
+def _report(out: Path, manifest: dict[str, Any]) -> int:
+    """Print the run's totals and every failed object; 1 when any object failed, else 0."""
     entries = manifest["entries"]
-    ok = [e for e in entries.values() if e["status"] == "ok"]
+    ok = {k: e for k, e in entries.items() if e["status"] == "ok"}
     failed = {k: e for k, e in entries.items() if e["status"] == "failed"}
     print(
-        f"{args.out}: {len(ok)} objects ok, {len(failed)} failed; "
-        f"{sum(e['passing'] for e in ok)} passing and {sum(e['failing'] for e in ok)} failing pairs"
+        f"{out}: {len(ok)} objects ok, {len(failed)} failed; "
+        f"{sum(e['passing'] for e in ok.values())} passing and "
+        f"{sum(e['failing'] for e in ok.values())} failing pairs"
     )
+    no_pass = sorted(k for k, e in ok.items() if e["passing"] == 0)
+    if no_pass:
+        print(f"  {len(no_pass)} ok objects have no passing pair: {', '.join(no_pass)}")
     for object_id, entry in failed.items():
         print(f"  failed {object_id}: {entry['error']}")
-    return 0
+    return 1 if failed else 0
 
 
 def _stats(args: argparse.Namespace) -> int:
     from .atomic import write_json_atomic
-    from .stats import collect_stats, plot_stats
+    from .stats import collect_stats, format_summary, plot_stats
 
     stats = collect_stats(args.folder)
     summary = stats.summary()
-    for key, value in summary.items():
-        print(f"  {key:26s} {value}")
+    for line in format_summary(summary):
+        print(f"  {line}")
     for path in plot_stats(stats, args.out):
         print(f"  wrote {path}")
     write_json_atomic(args.out / "stats.json", summary)

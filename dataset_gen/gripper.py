@@ -37,6 +37,7 @@ from trimesh.ray.ray_triangle import RayMeshIntersector
 
 from dataset_gen.errors import GripperError
 from dataset_gen.objects import GraspObject, is_rigid
+from dataset_gen.parameters import PAPER
 
 # --------------------------------------------------------------------------------------------
 # Geometry
@@ -208,11 +209,12 @@ PANDA = GripperModel(
     finger_thickness=0.02,
     finger_width=0.02,
     palm_half_extents=(0.1025, 0.033, 0.0316),
-    max_force=70.0,
+    # The release's force bound f_high is, by definition, this hand's continuous force.
+    max_force=PAPER.f_high,
     description=(
         "Franka Emika Panda hand. Origin at the flange; palm face at 0.066 m (the hull of the "
         "ACRONYM collision mesh between the fingers), fingertips at 0.1122 m, contact depth at "
-        "Franka's TCP (0.1034 m). 70 N continuous force."
+        f"Franka's TCP (0.1034 m). {PAPER.f_high:g} N continuous force."
     ),
 )
 
@@ -342,49 +344,19 @@ def contacts_from_pose(
     model = get_gripper(gripper)
     w = model._opening(opening)
     mesh = obj.mesh if isinstance(obj, GraspObject) else obj
-    poses = np.asarray(T, dtype=np.float64)
-    if poses.shape == (4, 4):
-        poses = poses[None]
-    if poses.ndim != 3 or poses.shape[1:] != (4, 4):
-        raise GripperError(f"T: expected shape (4, 4) or (N, 4, 4), found {np.shape(T)}")
-    n_rows, n_cols = rays_per_finger
-    if n_rows < 1 or n_cols < 1:
-        raise GripperError(f"rays_per_finger: expected positive counts, found {rays_per_finger}")
-
+    poses = _check_poses(T, rays_per_finger)
     n = len(poses)
-    status = np.full(n, ContactStatus.OK, dtype=np.int8)
+    status = _pose_status(mesh, model, w, poses, check_collision)
     points = np.full((n, 2, 3), np.nan)
     normals = np.full((n, 2, 3), np.nan)
     face_ids = np.full((n, 2), -1, dtype=np.int64)
     width = np.full(n, np.nan)
-
-    valid = np.asarray(is_rigid(poses, atol=1e-5)).reshape(n)
-    status[~valid] = ContactStatus.INVALID_POSE
-    if check_collision and valid.any():
-        checker = _CollisionChecker(mesh, model, w)
-        for i in np.flatnonzero(valid):
-            outcome = checker.classify(poses[i])
-            if outcome != ContactStatus.OK:
-                status[i] = outcome
     todo = np.flatnonzero(status == ContactStatus.OK)
     if len(todo) == 0:
         return JawContacts(status, points, normals, face_ids, width)
 
-    # Ray grid on each finger's inner face, in the gripper frame.
-    inset = 1e-4
-    ys = np.linspace(model.palm_depth + inset, model.finger_tip - inset, n_rows)
-    zs = np.linspace(-model.finger_width / 2 + inset, model.finger_width / 2 - inset, n_cols)
-    grid = np.stack(np.meshgrid(ys, zs, indexing="ij"), axis=-1).reshape(-1, 2)
-    k = len(grid)
-    local_origins = np.zeros((2, k, 3))
-    local_origins[0, :, 0], local_origins[1, :, 0] = w / 2.0, -w / 2.0
-    local_origins[:, :, 1:] = grid
-    local_dirs = np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
-
-    R = poses[todo, :3, :3]
-    t = poses[todo, :3, 3]
-    origins = np.einsum("nij,fkj->nfki", R, local_origins) + t[:, None, None, :]
-    dirs = np.broadcast_to(np.einsum("nij,fj->nfi", R, local_dirs)[:, :, None, :], origins.shape)
+    origins, dirs = _finger_rays(model, w, poses[todo], rays_per_finger)
+    k = origins.shape[2]
     hits = _first_hits(mesh, origins.reshape(-1, 3), dirs.reshape(-1, 3), max_distance=w)
     distance, location, hit_face = (a.reshape(len(todo), 2, k, *a.shape[1:]) for a in hits)
 
@@ -394,26 +366,99 @@ def contacts_from_pose(
     status[todo[~both]] = ContactStatus.MISS
 
     face_normals = np.asarray(mesh.face_normals, dtype=np.float64)
-    tie = 1e-6
     for row in np.flatnonzero(both):
         i = todo[row]
         for finger in range(2):
-            d = distance[row, finger]
-            near = np.flatnonzero(d <= np.nanmin(d) + tie)
-            patch = location[row, finger, near]
-            centre = patch.mean(axis=0)
-            faces = hit_face[row, finger, near]
-            normal = face_normals[faces].mean(axis=0)
-            ray_dir = dirs[row, finger, 0]
-            if normal @ ray_dir > 0:  # open or inconsistently wound meshes: face the finger
-                normal = -normal
-            norm = np.linalg.norm(normal)
-            normal = -ray_dir if norm <= 1e-12 else normal / norm
-            points[i, finger] = centre
-            normals[i, finger] = normal
-            face_ids[i, finger] = faces[np.argmin(np.linalg.norm(patch - centre, axis=1))]
+            points[i, finger], normals[i, finger], face_ids[i, finger] = _finger_patch(
+                distance[row, finger],
+                location[row, finger],
+                hit_face[row, finger],
+                dirs[row, finger, 0],
+                face_normals,
+            )
         width[i] = w - float(np.nanmin(distance[row, 0]) + np.nanmin(distance[row, 1]))
     return JawContacts(status, points, normals, face_ids, width)
+
+
+def _check_poses(T: np.ndarray, rays_per_finger: tuple[int, int]) -> np.ndarray:
+    """(N, 4, 4) float poses from ``T`` ((4, 4) or (N, 4, 4)); checks the ray grid size."""
+    poses = np.asarray(T, dtype=np.float64)
+    if poses.shape == (4, 4):
+        poses = poses[None]
+    if poses.ndim != 3 or poses.shape[1:] != (4, 4):
+        raise GripperError(f"T: expected shape (4, 4) or (N, 4, 4), found {np.shape(T)}")
+    n_rows, n_cols = rays_per_finger
+    if n_rows < 1 or n_cols < 1:
+        raise GripperError(f"rays_per_finger: expected positive counts, found {rays_per_finger}")
+    return poses
+
+
+def _pose_status(
+    mesh: trimesh.Trimesh,
+    model: GripperModel,
+    w: float,
+    poses: np.ndarray,
+    check_collision: bool,
+) -> np.ndarray:
+    """(N,) int8 :class:`ContactStatus` before closing: invalid (non-rigid) poses and, with
+    ``check_collision``, open grippers (opening ``w``) that intersect the object."""
+    n = len(poses)
+    status = np.full(n, ContactStatus.OK, dtype=np.int8)
+    valid = np.asarray(is_rigid(poses, atol=1e-5)).reshape(n)
+    status[~valid] = ContactStatus.INVALID_POSE
+    if check_collision and valid.any():
+        checker = _CollisionChecker(mesh, model, w)
+        for i in np.flatnonzero(valid):
+            outcome = checker.classify(poses[i])
+            if outcome != ContactStatus.OK:
+                status[i] = outcome
+    return status
+
+
+def _finger_rays(
+    model: GripperModel, w: float, poses: np.ndarray, rays_per_finger: tuple[int, int]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Ray origins and directions (M, 2, K, 3) of a grid on each finger's inner face at opening
+    ``w``, swept towards the other finger, for (M, 4, 4) ``poses`` (object frame)."""
+    n_rows, n_cols = rays_per_finger
+    inset = 1e-4
+    ys = np.linspace(model.palm_depth + inset, model.finger_tip - inset, n_rows)
+    zs = np.linspace(-model.finger_width / 2 + inset, model.finger_width / 2 - inset, n_cols)
+    grid = np.stack(np.meshgrid(ys, zs, indexing="ij"), axis=-1).reshape(-1, 2)
+    k = len(grid)
+    local_origins = np.zeros((2, k, 3))
+    local_origins[0, :, 0], local_origins[1, :, 0] = w / 2.0, -w / 2.0
+    local_origins[:, :, 1:] = grid
+    local_dirs = np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    R = poses[:, :3, :3]
+    t = poses[:, :3, 3]
+    origins = np.einsum("nij,fkj->nfki", R, local_origins) + t[:, None, None, :]
+    dirs = np.broadcast_to(np.einsum("nij,fj->nfi", R, local_dirs)[:, :, None, :], origins.shape)
+    return origins, dirs
+
+
+def _finger_patch(
+    distance: np.ndarray,
+    location: np.ndarray,
+    hit_face: np.ndarray,
+    ray_dir: np.ndarray,
+    face_normals: np.ndarray,
+    tie: float = 1e-6,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """One finger's contact from its K rays: the centre of the rays that tie for the nearest hit
+    (within ``tie`` m), their mean face normal turned to face the finger, and the hit face
+    nearest that centre."""
+    near = np.flatnonzero(distance <= np.nanmin(distance) + tie)
+    patch = location[near]
+    centre = patch.mean(axis=0)
+    faces = hit_face[near]
+    normal = face_normals[faces].mean(axis=0)
+    if normal @ ray_dir > 0:  # open or inconsistently wound meshes: face the finger
+        normal = -normal
+    norm = np.linalg.norm(normal)
+    normal = -ray_dir if norm <= 1e-12 else normal / norm
+    face = int(faces[np.argmin(np.linalg.norm(patch - centre, axis=1))])
+    return centre, normal, face
 
 
 def _first_hits(

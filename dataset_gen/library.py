@@ -21,8 +21,15 @@ from typing import Any
 
 from dataset_gen import io, procedural
 from dataset_gen.atomic import write_bytes_atomic, write_json_atomic
+from dataset_gen.checks import check_number
 from dataset_gen.errors import MeshError
-from dataset_gen.objects import ConvexPart, GraspObject, load_object, part_from_dict
+from dataset_gen.objects import (
+    DEFAULT_MASS_KG,
+    ConvexPart,
+    GraspObject,
+    load_object,
+    part_from_dict,
+)
 
 PARTS_FORMAT = "dg16m-parts"
 PARTS_SCHEMA_VERSION = 1
@@ -86,39 +93,53 @@ def write_procedural_library(
     out: str | os.PathLike[str],
     specs: Sequence[tuple[str, int]],
     *,
-    mass: float = 6.0,
+    mass: float = DEFAULT_MASS_KG,
     on_object: Callable[[str], None] | None = None,
 ) -> Path:
     """Build the procedural objects ``specs`` ((family, seed) pairs) into folder ``out``.
 
     Objects already listed as ok in the manifest with their files present are kept as they are
-    (a rerun finishes an interrupted one). Returns the manifest path.
+    (a rerun finishes an interrupted one). Returns the manifest path. The mass, every spec and an
+    existing manifest are checked before anything is written.
+
+    Raises:
+        MeshError: a bad mass, or ``out`` holds a manifest of another kind.
+        ProceduralError: an unknown family or a seed outside its split.
     """
     out = Path(out)
+    mass = check_number("mass", mass, error=MeshError)
+    for family, seed in specs:
+        procedural.split_of(family, seed)  # ProceduralError before any folder is made
+    manifest = _read_or_new_manifest(out, mass)
     (out / "meshes").mkdir(parents=True, exist_ok=True)
     (out / "parts").mkdir(parents=True, exist_ok=True)
-    manifest = _read_or_new_manifest(out, mass)
     entries: dict[str, Any] = manifest["entries"]
     for family, seed in specs:
         oid = procedural.object_id(family, seed)
-        done = entries.get(oid)
-        if (
-            done
-            and done.get("status") == "ok"
-            and all((out / f).exists() for f in done["files"].values())
-        ):
-            if on_object:
-                on_object(oid)
-            continue
-        obj = procedural.make_procedural_object(family, seed, mass=mass)
-        mesh_file, parts_file = f"meshes/{oid}.obj", f"parts/{oid}.json"
-        write_bytes_atomic(out / mesh_file, obj.mesh.export(file_type="obj").encode("utf-8"))
-        write_parts(out / parts_file, oid, obj.parts or ())
-        entries[oid] = object_entry(obj, mesh_file, parts_file)
-        io.write_manifest(out, manifest)
+        if not _is_finished(out, entries.get(oid)):
+            _write_object(out, manifest, family, seed, mass)
         if on_object:
             on_object(oid)
     return io.write_manifest(out, manifest)
+
+
+def _is_finished(out: Path, entry: dict[str, Any] | None) -> bool:
+    return bool(
+        entry
+        and entry.get("status") == "ok"
+        and all((out / f).exists() for f in entry["files"].values())
+    )
+
+
+def _write_object(out: Path, manifest: dict[str, Any], family: str, seed: int, mass: float) -> None:
+    """Build one object, write its mesh and parts, record it and rewrite the manifest."""
+    oid = procedural.object_id(family, seed)
+    obj = procedural.make_procedural_object(family, seed, mass=mass)
+    mesh_file, parts_file = f"meshes/{oid}.obj", f"parts/{oid}.json"
+    write_bytes_atomic(out / mesh_file, obj.mesh.export(file_type="obj").encode("utf-8"))
+    write_parts(out / parts_file, oid, obj.parts or ())
+    manifest["entries"][oid] = object_entry(obj, mesh_file, parts_file)
+    io.write_manifest(out, manifest)
 
 
 def _read_or_new_manifest(out: Path, mass: float) -> dict[str, Any]:
@@ -127,6 +148,12 @@ def _read_or_new_manifest(out: Path, mass: float) -> dict[str, Any]:
         if manifest["kind"] != "objects":
             raise MeshError(
                 f"{out}: expected an objects folder, found a manifest of kind {manifest['kind']!r}"
+            )
+        found = manifest.get("parameters", {}).get("mass_kg")
+        if found is not None and found != mass:
+            raise MeshError(
+                f"{out}: expected objects of {mass:g} kg to add to this folder, found a folder "
+                f"made with {found:g} kg (use another --out)"
             )
         return manifest
     return io.new_manifest("objects", parameters={"mass_kg": mass, "source": "procedural"})
@@ -171,7 +198,7 @@ def _load_entry(
     obj = load_object(
         io.manifest_entry_path(folder, manifest, object_id, "mesh"),
         object_id=object_id,
-        mass=mass if mass is not None else float(entry.get("mass_kg", 6.0)),
+        mass=mass if mass is not None else float(entry.get("mass_kg", DEFAULT_MASS_KG)),
         center=False,
         parts=None if parts_path is None else read_parts(parts_path),
     )

@@ -33,15 +33,34 @@ import numpy as np
 import trimesh
 
 from dataset_gen.errors import MeshError
+from dataset_gen.parameters import PAPER
 
-DEFAULT_MASS_KG = 6.0
+DEFAULT_MASS_KG = PAPER.mass
 """Object mass used by the DG16M release (with g = 10 m/s^2 its weight is 60 N)."""
 
 MIN_EXTENT_M = 1e-3
-"""Smallest accepted longest side of an object, after scaling (m)."""
+"""Smallest accepted longest side of an object, after scaling (m); a hard limit."""
 
 MAX_EXTENT_M = 100.0
-"""Largest accepted longest side of an object, after scaling (m); larger usually means mm units."""
+"""Largest accepted longest side of an object, after scaling (m); a hard limit."""
+
+DUAL_ARM_MIN_EXTENT_M = 0.05
+"""Smallest plausible longest side of a dual-arm object loaded from a file (m).
+
+Smaller files need ``allow_any_size`` (``--allow-any-size``): usually they are in the wrong units
+or were given a wrong scale. The single-arm ACRONYM objects of the shared real data are
+0.10-0.20 m long and stay above it."""
+
+DUAL_ARM_MAX_EXTENT_M = 5.0
+"""Largest plausible longest side of a dual-arm object loaded from a file (m); larger files are
+usually in millimetres (an 80 mm box read as 80 m)."""
+
+UNIT_SCALES: tuple[tuple[float, str], ...] = (
+    (1.0, "metres"),
+    (0.001, "millimetres"),
+    (0.01, "centimetres"),
+)
+"""Scales suggested for an implausible size, in order of preference, with the units they read."""
 
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".off", ".glb", ".gltf")
 """File types :func:`load_mesh` accepts (anything trimesh reads among these)."""
@@ -438,6 +457,7 @@ def load_object(
     mass: float = DEFAULT_MASS_KG,
     center: bool = True,
     parts: Sequence[ConvexPart] | None = None,
+    allow_any_size: bool = False,
 ) -> GraspObject:
     """Load a mesh file as a :class:`GraspObject`.
 
@@ -450,12 +470,18 @@ def load_object(
         mass: kg (default 6, the release value).
         center: translate by ``-centroid`` (the release convention). ``False`` keeps the file origin.
         parts: convex parts in the file's frame and units; they are scaled and translated with the mesh.
+        allow_any_size: accept a longest side outside the plausible dual-arm range
+            [:data:`DUAL_ARM_MIN_EXTENT_M`, :data:`DUAL_ARM_MAX_EXTENT_M`] (the hard limits
+            still hold). Pass it when the scale is known to be right, e.g. given by a grasp file.
 
     Raises:
-        MeshError: the file is unusable, or the scaled size is outside
-            [:data:`MIN_EXTENT_M`, :data:`MAX_EXTENT_M`].
+        MeshError: the file is unusable, the scaled size is outside [:data:`MIN_EXTENT_M`,
+            :data:`MAX_EXTENT_M`], or outside the dual-arm range without ``allow_any_size``
+            (the message suggests a scale).
     """
     mesh, report = load_mesh(path)
+    if not allow_any_size:
+        check_dual_arm_size(mesh, scale=scale, target_extent=target_extent, name=str(path))
     return make_object(
         mesh,
         object_id=object_id or Path(path).stem,
@@ -467,6 +493,66 @@ def load_object(
         source=Path(path),
         cleaning=report,
     )
+
+
+def check_dual_arm_size(
+    mesh: trimesh.Trimesh,
+    *,
+    scale: float | None = None,
+    target_extent: float | None = None,
+    name: str = "mesh",
+) -> None:
+    """Raise :class:`MeshError` unless ``mesh`` (file units) scaled as asked has a longest side in
+    [:data:`DUAL_ARM_MIN_EXTENT_M`, :data:`DUAL_ARM_MAX_EXTENT_M`].
+
+    The message says what was found and suggests a scale from :data:`UNIT_SCALES` that puts the
+    object in range (dropping ``--scale`` when the file is already in metres). Invalid ``scale``
+    or ``target_extent`` values are left to :func:`make_object`, which names them.
+    """
+    longest = float(np.max(mesh.extents))
+    if target_extent is not None:
+        size = float(target_extent)
+    else:
+        size = longest * (1.0 if scale is None else float(scale))
+    if not (math.isfinite(size) and size > 0):
+        return
+    if DUAL_ARM_MIN_EXTENT_M <= size <= DUAL_ARM_MAX_EXTENT_M:
+        return
+    expected = (
+        f"expected {DUAL_ARM_MIN_EXTENT_M:g}-{DUAL_ARM_MAX_EXTENT_M:g} m for a dual-arm object"
+    )
+    if target_extent is not None:
+        hint = "choose a --target-extent in that range"
+    else:
+        hint = _scale_hint(longest, scale)
+    raise MeshError(
+        f"{name}: longest side {_length(size)}: {expected}; {hint}, "
+        "or pass --allow-any-size if the size is right"
+    )
+
+
+def _scale_hint(longest: float, scale: float | None) -> str:
+    """Suggest a scale from :data:`UNIT_SCALES` that puts ``longest`` file units in range."""
+    current = 1.0 if scale is None else float(scale)
+    for factor, units in UNIT_SCALES:
+        if factor == current or not (
+            DUAL_ARM_MIN_EXTENT_M <= longest * factor <= DUAL_ARM_MAX_EXTENT_M
+        ):
+            continue
+        if factor == 1.0:
+            return (
+                f"the file's own units give {_length(longest)}: it seems to be in metres "
+                f"already, so --scale {current:g} looks wrong (drop it)"
+            )
+        return f"a file in {units} needs --scale {factor:g} ({_length(longest * factor)})"
+    return "pass --scale or --target-extent to give it a plausible size"
+
+
+def _length(metres: float) -> str:
+    """A length for people: ``80 m``, ``0.8 mm``, ``0.301 m``."""
+    if metres < 0.01:
+        return f"{metres * 1000:.3g} mm"
+    return f"{metres:.3g} m"
 
 
 def make_object(

@@ -41,20 +41,23 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from dataset_gen.checks import check_integer, check_number
 from dataset_gen.errors import Dg16mError
 from dataset_gen.force_closure import ForceClosureResult, evaluate
 from dataset_gen.gripper import GripperModel, get_gripper
+from dataset_gen.parameters import PAPER
 from dataset_gen.sampling import SingleArmGrasps
 
 Strategy = Literal["force_closure", "random", "farthest"]
 STRATEGIES: tuple[str, ...] = ("force_closure", "random", "farthest")
 
-#: Release parameters (DESIGN.md): pairs whose grasp centres are closer than 0.1 m are pruned;
-#: up to 2000 passing and 2000 failing pairs are kept, the failing ones with loss > 0.5.
-DEFAULT_MIN_CENTER_DISTANCE = 0.1
-DEFAULT_MAX_PASSING = 2000
-DEFAULT_MAX_FAILING = 2000
-DEFAULT_FAILING_MIN_LOSS = 0.5
+#: Release parameters (DESIGN.md), aliases of :data:`dataset_gen.parameters.PAPER`'s fields:
+#: pairs whose grasp centres are closer than 0.1 m are pruned; up to 2000 passing and 2000
+#: failing pairs are kept, the failing ones with loss > 0.5.
+DEFAULT_MIN_CENTER_DISTANCE = PAPER.min_center_distance
+DEFAULT_MAX_PASSING = PAPER.max_passing
+DEFAULT_MAX_FAILING = PAPER.max_failing
+DEFAULT_FAILING_MIN_LOSS = PAPER.failing_min_loss
 #: Accuracy of the exact losses computed for the selected failing pairs.
 DEFAULT_SELECTION_LOSS_RTOL = 1e-4
 
@@ -112,21 +115,15 @@ def _check_pairs(pairs: object, m: int) -> IntArray:
 
 
 def _check_nonnegative(name: str, value: float) -> float:
-    try:
-        value = float(value)
-    except (TypeError, ValueError) as exc:
-        raise PairingError(f"{name}: expected a number, found {value!r}") from exc
-    if not np.isfinite(value) or value < 0:
-        raise PairingError(f"{name}: expected a finite number >= 0, found {value!r}")
-    return value
+    """A finite number >= 0 (numpy scalars too; not a bool or a string) as a float."""
+    return check_number(name, value, allow_zero=True, error=PairingError)
 
 
 def _check_count(name: str, value: int | None, *, allow_none: bool = False) -> int | None:
+    """An integer >= 0 (numpy integers too; not a bool), or None with ``allow_none``."""
     if value is None and allow_none:
         return None
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise PairingError(f"{name}: expected an integer >= 0, found {value!r}")
-    return int(value)
+    return check_integer(name, value, minimum=0, error=PairingError)
 
 
 def _check_rng(rng: object) -> np.random.Generator:
@@ -691,14 +688,11 @@ class Selection:
 def proven_loss_lower(result: ForceClosureResult) -> FloatArray:
     """``(N,)`` a proven lower bound on each pair's loss (max over wrenches); 0 where unknown.
 
-    Per wrench: the fast path's dual bound ``loss_lower``; where Clarabel solved it, its optimum
-    ``losses``. Rank-deficient pairs get 0 (they are not solved).
+    The fast path's dual bound or Clarabel's dual bound (never an attained loss, which is an
+    upper bound); rank-deficient pairs get 0 (they are not solved). See
+    :attr:`~dataset_gen.force_closure.ForceClosureResult.pair_loss_lower`.
     """
-    lower = np.where(np.isfinite(result.loss_lower), result.loss_lower, np.nan)
-    exact = np.where(result.loss_converged & np.isfinite(result.losses), result.losses, np.nan)
-    per = np.where(np.isfinite(lower), lower, np.where(np.isfinite(exact), exact, 0.0))
-    per = np.where(result.rank_ok[:, None], per, 0.0)
-    return per.max(axis=1) if per.shape[1] else np.zeros(result.n)
+    return result.pair_loss_lower
 
 
 def _reevaluate(
@@ -708,17 +702,8 @@ def _reevaluate(
     rows: IntArray,
     loss_rtol: float,
 ) -> ForceClosureResult:
-    p = result.parameters
-    return evaluate(
-        points[rows],
-        normals[rows],
-        convention=p.get("convention", "physical"),  # type: ignore[arg-type]
-        mu=float(p.get("mu", 0.4)),  # type: ignore[arg-type]
-        f_high=float(p.get("f_high", 70.0)),  # type: ignore[arg-type]
-        threshold=float(p.get("threshold", 1e-5)),  # type: ignore[arg-type]
-        wrenches=result.wrenches,
-        loss_rtol=loss_rtol,
-    )
+    """Evaluate ``rows`` again with ``result``'s problem and a loss accuracy of ``loss_rtol``."""
+    return evaluate(points[rows], normals[rows], **{**result.settings(), "loss_rtol": loss_rtol})
 
 
 def select_pairs(
@@ -769,14 +754,7 @@ def select_pairs(
     max_failing = _check_count("max_failing", max_failing)
     failing_min_loss = _check_nonnegative("failing_min_loss", failing_min_loss)
     loss_rtol = _check_nonnegative("loss_rtol", loss_rtol)
-    n = result.n
-    points = np.asarray(contact_points, dtype=np.float64)
-    normals = np.asarray(contact_normals, dtype=np.float64)
-    for name, array in (("contact_points", points), ("contact_normals", normals)):
-        if array.shape != (n, 4, 3):
-            raise PairingError(
-                f"{name}: expected shape ({n}, 4, 3) (one row per scored pair), found {array.shape}"
-            )
+    points, normals = _scored_contacts(result.n, contact_points, contact_normals)
 
     passed = np.asarray(result.passed, dtype=bool)
     failing = np.asarray(result.rank_ok, dtype=bool) & ~passed
@@ -785,61 +763,123 @@ def select_pairs(
     certain = failing & (lower > failing_min_loss)
     maybe = failing & ~certain & (upper > failing_min_loss)
 
-    # Passing block.
-    pass_rows = np.flatnonzero(passed)
-    if len(pass_rows) > max_passing:
-        pass_rows = np.sort(rng.choice(pass_rows, size=max_passing, replace=False))
-
-    # Failing block: walk the pool in a random order, prove each loss exactly. Exact outcomes
-    # are cached by row: (kept, loss, forces).
-    cache_ok: dict[int, tuple[bool, float, FloatArray]] = {}
-    reevaluated = 0
-
-    def settle(rows: IntArray) -> None:
-        nonlocal reevaluated
-        todo = np.array([r for r in rows.tolist() if r not in cache_ok], dtype=np.int64)
-        if len(todo) == 0:
-            return
-        exact = _reevaluate(result, points, normals, todo, loss_rtol)
-        reevaluated += len(todo)
-        ok = ~exact.passed & exact.rank_ok & (proven_loss_lower(exact) > failing_min_loss)
-        for k, r in enumerate(todo.tolist()):
-            cache_ok[r] = (bool(ok[k]), float(exact.loss[k]), exact.forces[k])
-
+    # The generator draws the passing subset first, then the order of the failing pool.
+    pass_rows = _draw_passing(passed, max_passing, rng)
+    exact = _ExactFailing(result, points, normals, loss_rtol, failing_min_loss)
     pool = np.flatnonzero(certain | maybe)
     pool = pool[rng.permutation(len(pool))] if len(pool) else pool
     if exact_counts and maybe.any():
-        undecided = np.flatnonzero(maybe)
-        settle(undecided)
-        resolved = np.array([cache_ok[r][0] for r in undecided.tolist()], dtype=bool)
-        certain = certain.copy()
-        certain[undecided[resolved]] = True
-        maybe = np.zeros_like(maybe)
+        certain, maybe = _settle_undecided(exact, certain, maybe)
+    fail_rows = _draw_failing(exact, pool, max_failing)
+    counts = {
+        "candidates": result.n,
+        "rank_deficient": int((~np.asarray(result.rank_ok, dtype=bool)).sum()),
+        "passing": int(passed.sum()),
+        "failing": int(failing.sum()),
+        "failing_over_min_loss": int(certain.sum()),
+        "failing_maybe_over_min_loss": int(maybe.sum()),
+        "failing_reevaluated": exact.reevaluated,
+        "selected_passing": len(pass_rows),
+        "selected_failing": len(fail_rows),
+    }
+    return _selection(result, pass_rows, fail_rows, exact, counts)
+
+
+def _scored_contacts(
+    n: int, contact_points: FloatArray, contact_normals: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The contacts of the N scored pairs as float64 ``(N, 4, 3)`` arrays, shapes checked."""
+    points = np.asarray(contact_points, dtype=np.float64)
+    normals = np.asarray(contact_normals, dtype=np.float64)
+    for name, array in (("contact_points", points), ("contact_normals", normals)):
+        if array.shape != (n, 4, 3):
+            raise PairingError(
+                f"{name}: expected shape ({n}, 4, 3) (one row per scored pair), found {array.shape}"
+            )
+    return points, normals
+
+
+def _draw_passing(passed: BoolArray, max_passing: int, rng: np.random.Generator) -> IntArray:
+    """The passing block: every passing row, or a sorted uniform subset of ``max_passing``."""
+    pass_rows = np.flatnonzero(passed)
+    if len(pass_rows) > max_passing:
+        pass_rows = np.sort(rng.choice(pass_rows, size=max_passing, replace=False))
+    return pass_rows
+
+
+@dataclass
+class _ExactFailing:
+    """Exact losses of failing pairs, each row solved at most once.
+
+    ``outcome[row]`` is ``(kept, loss, forces)``: kept when the exact result is full rank, fails,
+    and its proven lower bound exceeds ``failing_min_loss``; ``reevaluated`` counts the rows solved.
+    """
+
+    result: ForceClosureResult
+    points: FloatArray
+    normals: FloatArray
+    loss_rtol: float
+    failing_min_loss: float
+    outcome: dict[int, tuple[bool, float, FloatArray]] = field(default_factory=dict)
+    reevaluated: int = 0
+
+    def settle(self, rows: IntArray) -> None:
+        """Solve the rows of ``rows`` not solved yet, in one batch."""
+        todo = np.array([r for r in rows.tolist() if r not in self.outcome], dtype=np.int64)
+        if len(todo) == 0:
+            return
+        exact = _reevaluate(self.result, self.points, self.normals, todo, self.loss_rtol)
+        self.reevaluated += len(todo)
+        ok = ~exact.passed & exact.rank_ok & (proven_loss_lower(exact) > self.failing_min_loss)
+        for k, r in enumerate(todo.tolist()):
+            self.outcome[r] = (bool(ok[k]), float(exact.loss[k]), exact.forces[k])
+
+    def kept(self, row: int) -> bool:
+        """Whether a settled row's loss is proven over the minimum."""
+        return self.outcome[row][0]
+
+
+def _settle_undecided(
+    exact: _ExactFailing, certain: BoolArray, maybe: BoolArray
+) -> tuple[BoolArray, BoolArray]:
+    """Solve every pair the verdict-only bounds leave undecided (``exact_counts``): the exact
+    ``certain`` mask and an all-False ``maybe``."""
+    undecided = np.flatnonzero(maybe)
+    exact.settle(undecided)
+    resolved = np.array([exact.kept(r) for r in undecided.tolist()], dtype=bool)
+    certain = certain.copy()
+    certain[undecided[resolved]] = True
+    return certain, np.zeros_like(maybe)
+
+
+def _draw_failing(exact: _ExactFailing, pool: IntArray, max_failing: int) -> IntArray:
+    """The failing block: walk ``pool`` (already in a random order) in batches, solving each
+    pair exactly, and keep the first ``max_failing`` whose loss is proven over the minimum.
+    Returns the kept rows sorted."""
     kept: list[int] = []
     cursor = 0
     while len(kept) < max_failing and cursor < len(pool):
         need = max_failing - len(kept)
         batch = pool[cursor : cursor + max(need + need // 8 + 16, 64)]
         cursor += len(batch)
-        settle(batch)
-        kept.extend([r for r in batch.tolist() if cache_ok[r][0]][:need])
-    fail_rows = np.sort(np.array(kept, dtype=np.int64))
-    fail_loss = np.array([cache_ok[r][1] for r in fail_rows.tolist()], dtype=np.float64)
-    fail_forces = np.array([cache_ok[r][2] for r in fail_rows.tolist()], dtype=np.float64).reshape(
-        -1, 4, 3
-    )
+        exact.settle(batch)
+        kept.extend([r for r in batch.tolist() if exact.kept(r)][:need])
+    return np.sort(np.array(kept, dtype=np.int64))
+
+
+def _selection(
+    result: ForceClosureResult,
+    pass_rows: IntArray,
+    fail_rows: IntArray,
+    exact: _ExactFailing,
+    counts: dict[str, int],
+) -> Selection:
+    """The :class:`Selection` of the two blocks, passing first."""
+    fail_loss = np.array([exact.outcome[r][1] for r in fail_rows.tolist()], dtype=np.float64)
+    fail_forces = np.array(
+        [exact.outcome[r][2] for r in fail_rows.tolist()], dtype=np.float64
+    ).reshape(-1, 4, 3)
     indices = np.concatenate([pass_rows, fail_rows]).astype(np.int64)
-    counts = {
-        "candidates": n,
-        "rank_deficient": int((~np.asarray(result.rank_ok, dtype=bool)).sum()),
-        "passing": int(passed.sum()),
-        "failing": int(failing.sum()),
-        "failing_over_min_loss": int(certain.sum()),
-        "failing_maybe_over_min_loss": int(maybe.sum()),
-        "failing_reevaluated": reevaluated,
-        "selected_passing": len(pass_rows),
-        "selected_failing": len(fail_rows),
-    }
     return Selection(
         indices=indices,
         passed=np.concatenate([np.ones(len(pass_rows), bool), np.zeros(len(fail_rows), bool)]),

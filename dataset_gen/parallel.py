@@ -2,7 +2,7 @@
 
 Both backends call the same top-level function ``task(item, *args)``; the caller records each
 result by object id, so the outcome never depends on completion order. Used by the generator
-(:mod:`dataset_gen.generate`) and the simulation benchmark (:mod:`dg16m_env.benchmark`).
+(:mod:`dataset_gen.generate`) and the packages built on it (e.g. the simulation benchmark).
 """
 
 from __future__ import annotations

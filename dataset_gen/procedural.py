@@ -62,6 +62,7 @@ byte-identical exported meshes.
 
 from __future__ import annotations
 
+import io
 import math
 import re
 import zlib
@@ -72,7 +73,13 @@ import numpy as np
 import trimesh
 
 from dataset_gen.errors import Dg16mError
-from dataset_gen.objects import DEFAULT_MASS_KG, ConvexPart, GraspObject, make_object, parts_to_mesh
+from dataset_gen.objects import (
+    DEFAULT_MASS_KG,
+    ConvexPart,
+    GraspObject,
+    make_object,
+    parts_to_mesh,
+)
 
 Split = Literal["train", "benchmark"]
 
@@ -695,26 +702,98 @@ def make_procedural_object(family: str, seed: int, *, mass: float = DEFAULT_MASS
     """Build object ``(family, seed)``: the union mesh of :func:`build_parts`, centred at its
     centroid, with its parts, ``mass`` (kg) and metadata ``{"family", "seed", "split"}``.
 
+    The mesh survives its own OBJ export read back by a default ``trimesh.load`` (which merges
+    close vertices) unchanged: see :func:`survives_default_load` and :func:`union_mesh`.
+
     Raises:
         ProceduralError: unknown family or invalid seed.
-        RuntimeError: the union is not one connected watertight solid with positive volume (a
-            bug in a family builder).
+        RuntimeError: the union is not one connected watertight solid with positive volume, or
+            does not survive a default load (a bug in a family builder).
     """
     split = split_of(family, seed)
     parts = build_parts(family, seed)
-    mesh = canonical_mesh(parts_to_mesh(parts))
     oid = object_id(family, seed)
+
+    def build(mesh: trimesh.Trimesh) -> GraspObject:
+        return make_object(
+            mesh,
+            object_id=oid,
+            mass=mass,
+            parts=parts,
+            metadata={"family": family, "seed": int(seed), "split": split},
+        )
+
+    union = union_mesh(parts)
+    obj = build(union)
+    reloads = survives_default_load(obj.mesh)
+    if not reloads:
+        obj = build(collapse_slivers(union))
+        reloads = survives_default_load(obj.mesh)
+    _check_solid(obj.mesh, oid, family, reloads)
+    return obj
+
+
+def union_mesh(parts: Sequence[ConvexPart]) -> trimesh.Trimesh:
+    """The canonical union mesh of ``parts`` (:func:`~dataset_gen.objects.parts_to_mesh`).
+
+    manifold3d computes the union in float32 coordinates, so parts that touch exactly (the tub's
+    wall segments meet along their outer corner edges, its floor is coplanar with their bottoms)
+    can leave sliver triangles whose vertices lie ~1e-8 m apart. The mesh is still watertight,
+    but a loader that merges close vertices (a default ``trimesh.load``) pinches it into a
+    non-manifold one. :func:`make_procedural_object` then collapses those slivers
+    (:func:`collapse_slivers`); meshes that survive a default load are kept exactly as they are,
+    which keeps every benchmark object's mesh byte-identical.
+    """
+    return canonical_mesh(parts_to_mesh(parts))
+
+
+SLIVER_TOLERANCE_M = 1e-6
+"""Edges shorter than this are collapsed by :func:`collapse_slivers` (m); far below any feature
+(:data:`MIN_FEATURE_M`) and far above float32 rounding at object scale (~3e-8 m)."""
+
+
+def collapse_slivers(
+    mesh: trimesh.Trimesh, tolerance: float = SLIVER_TOLERANCE_M
+) -> trimesh.Trimesh:
+    """``mesh`` with its sliver features removed: manifold3d's ``simplify`` collapses edges
+    shorter than ``tolerance`` (m) and vertices that lie within it of their neighbours' surface,
+    keeping the mesh manifold; no surface moves by more than ``tolerance``. Canonical order."""
+    import manifold3d
+
+    solid = manifold3d.Manifold(
+        manifold3d.Mesh64(
+            vert_properties=np.asarray(mesh.vertices, dtype=np.float64),
+            tri_verts=np.asarray(mesh.faces, dtype=np.uint64),
+        )
+    )
+    simplified = solid.simplify(tolerance).to_mesh64()
+    vertices = np.asarray(simplified.vert_properties, dtype=np.float64)[:, :3]
+    faces = np.asarray(simplified.tri_verts, dtype=np.int64)
+    return canonical_mesh(trimesh.Trimesh(vertices=vertices, faces=faces, process=False))
+
+
+def survives_default_load(mesh: trimesh.Trimesh) -> bool:
+    """Whether ``mesh`` exported as OBJ (as the library and the generator write it) and read back
+    by a default ``trimesh.load`` keeps every vertex (none merged) and is watertight."""
+    text = mesh.export(file_type="obj")
+    loaded = trimesh.load(io.StringIO(text), file_type="obj")
+    return (
+        isinstance(loaded, trimesh.Trimesh)
+        and len(loaded.vertices) == len(mesh.vertices)
+        and len(loaded.faces) == len(mesh.faces)
+        and bool(loaded.is_watertight)
+    )
+
+
+def _check_solid(mesh: trimesh.Trimesh, oid: str, family: str, reloads: bool) -> None:
+    """Raise RuntimeError unless ``mesh`` is one watertight solid that survives a default load
+    (``reloads``, from :func:`survives_default_load`)."""
     bodies = len(mesh.split(only_watertight=False))
-    if not (mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0 and bodies == 1):
+    solid = mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0 and bodies == 1
+    if not (solid and reloads):
         raise RuntimeError(
-            f"{oid}: expected one watertight solid with positive volume, found "
-            f"watertight={mesh.is_watertight}, volume={mesh.volume:.4g} m^3, {bodies} bodies "
+            f"{oid}: expected one watertight solid with positive volume that survives a default "
+            f"trimesh.load of its OBJ, found watertight={mesh.is_watertight}, "
+            f"volume={mesh.volume:.4g} m^3, {bodies} bodies, survives load={reloads} "
             f"(a bug in the {family} builder)"
         )
-    return make_object(
-        mesh,
-        object_id=oid,
-        mass=mass,
-        parts=parts,
-        metadata={"family": family, "seed": int(seed), "split": split},
-    )

@@ -1,4 +1,7 @@
-"""Offscreen pictures of objects and dual grasps (matplotlib's Agg backend: no display, no GL).
+"""Offscreen pictures of objects and dual grasps (matplotlib's Agg canvas: no display, no GL).
+
+Figures are built on :class:`matplotlib.figure.Figure` with an Agg canvas: no pyplot state and no
+``matplotlib.use``, so importing this module never changes the caller's backend.
 
 Grippers are drawn as line skeletons of the gripper model (palm stem, cross bar, fingers, and a
 short bar at the contact depth); the two hands of one dual grasp share a colour and are joined by
@@ -12,13 +15,12 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib
-
-matplotlib.use("Agg")
-
-import matplotlib.pyplot as plt
 import numpy as np
 import trimesh
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+from mpl_toolkits.mplot3d.axes3d import Axes3D
 
 from dataset_gen.atomic import atomic_path
 from dataset_gen.gripper import GripperModel, get_gripper, transform_points
@@ -29,7 +31,12 @@ MAX_DRAWN_FACES = 40_000
 _LIGHT = np.array([0.4, -0.5, 0.75]) / np.linalg.norm([0.4, -0.5, 0.75])
 
 
-def _mesh_collection(mesh: trimesh.Trimesh, *, color=(0.72, 0.74, 0.78), alpha: float = 0.55):
+def _mesh_collection(
+    mesh: trimesh.Trimesh,
+    *,
+    color: tuple[float, float, float] = (0.72, 0.74, 0.78),
+    alpha: float = 0.55,
+) -> Poly3DCollection:
     faces = np.asarray(mesh.faces)
     normals = np.asarray(mesh.face_normals)
     if len(faces) > MAX_DRAWN_FACES:
@@ -45,8 +52,8 @@ def _mesh_collection(mesh: trimesh.Trimesh, *, color=(0.72, 0.74, 0.78), alpha: 
 
 
 def _setup_axes(
-    ax, mesh: trimesh.Trimesh, extra_points: np.ndarray | None, view: tuple[float, float]
-):
+    ax: Axes3D, mesh: trimesh.Trimesh, extra_points: np.ndarray | None, view: tuple[float, float]
+) -> None:
     points = np.asarray(mesh.vertices)
     if extra_points is not None and len(extra_points):
         points = np.concatenate([points, extra_points.reshape(-1, 3)])
@@ -102,7 +109,9 @@ def render_dual_grasps(
         out: PNG path (written atomically).
         gripper: model whose skeleton is drawn.
         contact_points: optional (N, 4, 3) contacts, drawn as dots.
-        n: total number of pairs drawn (split between passing and failing).
+        n: total number of pairs drawn, split between the panels by :func:`select_pairs`
+            (``n // 2`` passing and the rest failing; a class with fewer pairs leaves its slots
+            to the other).
         seed: which pairs are drawn.
         view: (elevation, azimuth) in degrees.
     """
@@ -111,39 +120,47 @@ def render_dual_grasps(
     passed = np.asarray(passed, dtype=bool)
     pick_pass, pick_fail = select_pairs(passed, n, seed)
     skeleton = model.skeleton().reshape(-1, 3)
-    fig = plt.figure(figsize=(13, 6.5))
+    fig = _new_figure(13, 6.5)
     panels = [
-        (
-            pick_pass,
-            plt.get_cmap("Greens"),
-            f"force closure: pass ({len(pick_pass)} of {int(passed.sum())})",
-        ),
-        (
-            pick_fail,
-            plt.get_cmap("Reds"),
-            f"force closure: fail ({len(pick_fail)} of {int((~passed).sum())})",
-        ),
+        (pick_pass, "Greens", f"force closure: pass ({len(pick_pass)} of {int(passed.sum())})"),
+        (pick_fail, "Reds", f"force closure: fail ({len(pick_fail)} of {int((~passed).sum())})"),
     ]
-    drawn_everywhere = [
-        transform_points(grasps[i], skeleton).reshape(-1, 3) for i in (*pick_pass, *pick_fail)
-    ]
-    extra = np.concatenate(drawn_everywhere) if drawn_everywhere else None
+    drawn = [transform_points(grasps[i], skeleton).reshape(-1, 3) for i in (*pick_pass, *pick_fail)]
+    extra = np.concatenate(drawn) if drawn else None
     for column, (indices, cmap, label) in enumerate(panels):
         ax = fig.add_subplot(1, 2, column + 1, projection="3d")
         ax.add_collection3d(_mesh_collection(mesh))
         for rank, index in enumerate(indices):
-            color = cmap(0.55 + 0.4 * rank / max(len(indices) - 1, 1))
-            segments = transform_points(grasps[index], skeleton).reshape(2, -1, 2, 3)
-            lines = Line3DCollection(segments.reshape(-1, 2, 3), colors=[color], linewidths=1.6)
-            ax.add_collection3d(lines)
-            mids = transform_points(grasps[index], [[0.0, model.contact_depth, 0.0]])[:, 0]
-            ax.plot(*mids.T, linestyle="--", color=color, linewidth=0.8)
-            if contact_points is not None:
-                cp = np.asarray(contact_points[index])
-                ax.scatter(*cp.T, color="black", s=6, depthshade=False)
+            color = matplotlib.colormaps[cmap](0.55 + 0.4 * rank / max(len(indices) - 1, 1))
+            points = None if contact_points is None else np.asarray(contact_points[index])
+            _draw_dual_grasp(ax, model, grasps[index], skeleton, color, points)
         _setup_axes(ax, mesh, extra, view)  # same limits in both panels
         ax.set_title(label, fontsize=10)
-    fig.suptitle(title or f"{len(grasps)} dual grasps, gripper {model.name}", fontsize=11, y=0.985)
+    _annotate_dual_grasps(fig, title or f"{len(grasps)} dual grasps, gripper {model.name}")
+    return _save(fig, out, dpi)
+
+
+def _draw_dual_grasp(
+    ax: Axes3D,
+    model: GripperModel,
+    poses: np.ndarray,
+    skeleton: np.ndarray,
+    color: tuple[float, ...],
+    contact_points: np.ndarray | None,
+) -> None:
+    """Both hands' skeletons of one dual grasp (2, 4, 4), a dashed line joining their contact
+    midpoints and the (4, 3) contact points when given."""
+    segments = transform_points(poses, skeleton).reshape(2, -1, 2, 3)
+    lines = Line3DCollection(segments.reshape(-1, 2, 3), colors=[color], linewidths=1.6)
+    ax.add_collection3d(lines)
+    mids = transform_points(poses, [[0.0, model.contact_depth, 0.0]])[:, 0]
+    ax.plot(*mids.T, linestyle="--", color=color, linewidth=0.8)
+    if contact_points is not None:
+        ax.scatter(*contact_points.T, color="black", s=6, depthshade=False)
+
+
+def _annotate_dual_grasps(fig: Figure, title: str) -> None:
+    fig.suptitle(title, fontsize=11, y=0.985)
     fig.text(
         0.5,
         0.015,
@@ -154,7 +171,6 @@ def render_dual_grasps(
         color="0.3",
     )
     fig.tight_layout(rect=(0.0, 0.03, 1.0, 0.95))
-    return _save(fig, out, dpi)
 
 
 def render_objects(
@@ -170,7 +186,7 @@ def render_objects(
         raise ValueError("render_objects: expected at least one object, found none")
     columns = max(1, min(columns, len(items)))
     rows = -(-len(items) // columns)
-    fig = plt.figure(figsize=(3.0 * columns, 3.0 * rows))
+    fig = _new_figure(3.0 * columns, 3.0 * rows)
     for i, (label, mesh) in enumerate(items):
         ax = fig.add_subplot(rows, columns, i + 1, projection="3d")
         ax.add_collection3d(_mesh_collection(mesh, color=(0.55, 0.65, 0.85), alpha=1.0))
@@ -181,11 +197,15 @@ def render_objects(
     return _save(fig, out, dpi)
 
 
-def _save(fig, out: str | os.PathLike[str], dpi: int) -> Path:
+def _new_figure(width: float, height: float) -> Figure:
+    """A figure of ``width`` x ``height`` inches on its own Agg canvas (no pyplot)."""
+    fig = Figure(figsize=(width, height))
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig: Figure, out: str | os.PathLike[str], dpi: int) -> Path:
     out = Path(out)
-    try:
-        with atomic_path(out) as tmp:
-            fig.savefig(tmp, format="png", dpi=dpi)
-    finally:
-        plt.close(fig)
+    with atomic_path(out) as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi)
     return out

@@ -76,9 +76,11 @@ from typing import Literal
 import numpy as np
 import trimesh
 
+from dataset_gen.checks import check_integer
 from dataset_gen.errors import Dg16mError
 from dataset_gen.gripper import ContactStatus, GripperModel, contacts_from_pose, get_gripper
 from dataset_gen.objects import GraspObject
+from dataset_gen.parameters import PAPER
 
 AxisChoice = Literal["normals", "contacts"]
 
@@ -175,8 +177,8 @@ def sample_antipodal_grasps(
     obj: GraspObject | trimesh.Trimesh,
     *,
     gripper: str | GripperModel = "panda",
-    n_grasps: int = 500,
-    mu: float = 0.4,
+    n_grasps: int = PAPER.n_grasps,
+    mu: float = PAPER.mu,
     n_approach: int = 8,
     rng: np.random.Generator,
     max_candidates: int | None = None,
@@ -221,48 +223,15 @@ def sample_antipodal_grasps(
         SamplingError: bad arguments or a mesh without faces. GripperError: unknown gripper.
     """
     model = get_gripper(gripper)
-    mesh = obj.mesh if isinstance(obj, GraspObject) else obj
-    if not isinstance(mesh, trimesh.Trimesh):
-        raise SamplingError(
-            f"obj: expected a GraspObject or trimesh.Trimesh, found {type(obj).__name__}"
-        )
-    if len(mesh.faces) == 0 or not float(mesh.area) > 0.0:
-        raise SamplingError(
-            f"obj: expected a mesh with surface area, found {len(mesh.faces)} faces"
-        )
+    mesh = _mesh_of(obj)
     n_grasps = _positive_int("n_grasps", n_grasps)
     n_approach = _positive_int("n_approach", n_approach)
     batch_size = _positive_int("batch_size", batch_size)
     max_candidates = _positive_int(
         "max_candidates", 100 * n_grasps if max_candidates is None else max_candidates
     )
-    if (
-        not isinstance(rays_per_finger, tuple | list)
-        or len(rays_per_finger) != 2
-        or not all(
-            isinstance(v, int | np.integer) and not isinstance(v, bool) and v >= 1
-            for v in rays_per_finger
-        )
-    ):
-        raise SamplingError(
-            f"rays_per_finger: expected two integers >= 1, found {rays_per_finger!r}"
-        )
-    if axis not in ("normals", "contacts"):
-        raise SamplingError(f"axis: expected 'normals' or 'contacts', found {axis!r}")
-    if not isinstance(rng, np.random.Generator):
-        raise SamplingError(f"rng: expected a numpy.random.Generator, found {type(rng).__name__}")
-    if not (isinstance(mu, numbers.Real) and math.isfinite(mu) and mu >= 0.0):
-        raise SamplingError(f"mu: expected a finite friction coefficient >= 0, found {mu!r}")
-    for name, value in (("min_width", min_width), ("opening_margin", opening_margin)):
-        if not (isinstance(value, numbers.Real) and math.isfinite(value) and value >= 0.0):
-            raise SamplingError(f"{name}: expected a finite length >= 0 m, found {value!r}")
-    max_width = model.max_opening - opening_margin
-    if not max_width > min_width:
-        raise SamplingError(
-            f"opening_margin: expected max_opening - opening_margin > min_width "
-            f"({model.max_opening} - {opening_margin} > {min_width} m), found "
-            f"{max_width:.6g} m"
-        )
+    _check_options(rays_per_finger, axis, rng, mu)
+    max_width = _max_width(model, min_width, opening_margin)
 
     sampler = _Sampler(
         mesh=mesh,
@@ -284,10 +253,61 @@ def sample_antipodal_grasps(
     )
 
 
+def _mesh_of(obj: object) -> trimesh.Trimesh:
+    """The mesh to sample: ``obj.mesh`` of a :class:`GraspObject`, or ``obj`` itself; it must
+    have faces with a positive area."""
+    mesh = obj.mesh if isinstance(obj, GraspObject) else obj
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise SamplingError(
+            f"obj: expected a GraspObject or trimesh.Trimesh, found {type(obj).__name__}"
+        )
+    if len(mesh.faces) == 0 or not float(mesh.area) > 0.0:
+        raise SamplingError(
+            f"obj: expected a mesh with surface area, found {len(mesh.faces)} faces"
+        )
+    return mesh
+
+
+def _check_options(rays_per_finger: object, axis: object, rng: object, mu: float) -> None:
+    """Check the ray grid, the axis choice, the generator and the friction coefficient."""
+    if (
+        not isinstance(rays_per_finger, tuple | list)
+        or len(rays_per_finger) != 2
+        or not all(
+            isinstance(v, int | np.integer) and not isinstance(v, bool) and v >= 1
+            for v in rays_per_finger
+        )
+    ):
+        raise SamplingError(
+            f"rays_per_finger: expected two integers >= 1, found {rays_per_finger!r}"
+        )
+    if axis not in ("normals", "contacts"):
+        raise SamplingError(f"axis: expected 'normals' or 'contacts', found {axis!r}")
+    if not isinstance(rng, np.random.Generator):
+        raise SamplingError(f"rng: expected a numpy.random.Generator, found {type(rng).__name__}")
+    if not (isinstance(mu, numbers.Real) and math.isfinite(mu) and mu >= 0.0):
+        raise SamplingError(f"mu: expected a finite friction coefficient >= 0, found {mu!r}")
+
+
+def _max_width(model: GripperModel, min_width: float, opening_margin: float) -> float:
+    """The widest contact separation accepted, ``max_opening - opening_margin`` (m), after
+    checking both lengths and that it exceeds ``min_width``."""
+    for name, value in (("min_width", min_width), ("opening_margin", opening_margin)):
+        if not (isinstance(value, numbers.Real) and math.isfinite(value) and value >= 0.0):
+            raise SamplingError(f"{name}: expected a finite length >= 0 m, found {value!r}")
+    max_width = model.max_opening - opening_margin
+    if not max_width > min_width:
+        raise SamplingError(
+            f"opening_margin: expected max_opening - opening_margin > min_width "
+            f"({model.max_opening} - {opening_margin} > {min_width} m), found "
+            f"{max_width:.6g} m"
+        )
+    return max_width
+
+
 def _positive_int(name: str, value: object) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise SamplingError(f"{name}: expected an integer >= 1, found {value!r}")
-    return int(value)
+    """An integer >= 1 (numpy integers too; not a bool)."""
+    return check_integer(name, value, minimum=1, error=SamplingError)
 
 
 # --------------------------------------------------------------------------------------------

@@ -21,21 +21,34 @@ from .procedural import make_procedural_object
 
 @dataclass(frozen=True)
 class ObjectSource:
-    """Where one object comes from: a mesh file or a procedural (family, seed)."""
+    """Where one object comes from: a mesh file or a procedural (family, seed).
+
+    ``scale`` and ``allow_any_size`` apply to mesh files (see
+    :func:`~dataset_gen.objects.load_object`): a file whose scaled size is implausible for a
+    dual-arm object fails to load unless ``allow_any_size``.
+    """
 
     object_id: str
     mesh: Path | None = None
     family: str | None = None
     family_seed: int | None = None
     scale: float | None = None
+    allow_any_size: bool = False
 
     def load(self, mass: float) -> GraspObject:
         """Build the object (raises :class:`~dataset_gen.errors.MeshError` for broken meshes)."""
         if self.mesh is not None:
-            return load_object(self.mesh, object_id=self.object_id, scale=self.scale, mass=mass)
+            return load_object(
+                self.mesh,
+                object_id=self.object_id,
+                scale=self.scale,
+                mass=mass,
+                allow_any_size=self.allow_any_size,
+            )
         if self.family is None or self.family_seed is None:
             raise MeshError(
-                f"{self.object_id}: expected a mesh file or a procedural (family, seed), found neither"
+                f"{self.object_id}: expected a mesh file or a procedural (family, seed), "
+                "found neither"
             )
         return make_procedural_object(self.family, self.family_seed, mass=mass)
 
@@ -55,9 +68,13 @@ def object_seed(seed: int, object_id: str) -> int:
 
 
 def mesh_sources(
-    folder: str | os.PathLike[str], *, scale: float | None = None
+    folder: str | os.PathLike[str],
+    *,
+    scale: float | None = None,
+    allow_any_size: bool = False,
 ) -> list[ObjectSource]:
-    """One source per mesh file in ``folder`` (not recursive), sorted by file name.
+    """One source per mesh file in ``folder`` (not recursive), sorted by file name, each loaded
+    with ``scale`` and ``allow_any_size``.
 
     Raises:
         MeshError: the folder does not exist, holds no mesh files, or two files share a stem.
@@ -74,11 +91,14 @@ def mesh_sources(
     for path in files:
         if path.stem in stems:
             raise MeshError(
-                f"--meshes {root}: expected unique file stems (object ids), found {stems[path.stem].name} "
-                f"and {path.name}"
+                f"--meshes {root}: expected unique file stems (object ids), found "
+                f"{stems[path.stem].name} and {path.name}"
             )
         stems[path.stem] = path
-    return [ObjectSource(object_id=p.stem, mesh=p, scale=scale) for p in files]
+    return [
+        ObjectSource(object_id=p.stem, mesh=p, scale=scale, allow_any_size=allow_any_size)
+        for p in files
+    ]
 
 
 def procedural_sources(specs: Sequence[tuple[str, int]]) -> list[ObjectSource]:

@@ -8,7 +8,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
+from .atomic import atomic_path
 from .errors import GraspFileError
 from .io import manifest_entry_path, read_dg16m, read_manifest
 
@@ -98,27 +101,50 @@ def collect_stats(folder: str | os.PathLike[str]) -> DatasetStats:
     return stats
 
 
+def format_summary(summary: dict[str, Any]) -> list[str]:
+    """Lines ``key  value`` of :meth:`DatasetStats.summary` for people: counts as integers,
+    rates and qualities with 4 significant digits, missing values as ``-``."""
+    lines = []
+    for key, value in summary.items():
+        if value is None:
+            text = "-"
+        elif isinstance(value, float):
+            text = f"{value:.4g}"
+        else:
+            text = str(value)
+        lines.append(f"{key:26s} {text}")
+    return lines
+
+
 def plot_stats(stats: DatasetStats, out: str | os.PathLike[str]) -> list[Path]:
-    """Write ``quality_hist.png`` (Fig. 4), ``passes_per_object.png`` and ``loss_hist.png``."""
-    import matplotlib
+    """Write ``quality_hist.png`` (Fig. 4), ``passes_per_object.png`` and ``loss_hist.png``.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from .atomic import atomic_path
-
+    Figures are built on :class:`matplotlib.figure.Figure` (no pyplot state, no backend switch).
+    """
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
+    figures = {
+        "quality_hist.png": _quality_figure(stats),
+        "passes_per_object.png": _passes_figure(stats),
+        "loss_hist.png": _loss_figure(stats),
+    }
     written = []
-
-    def save(fig: Any, name: str) -> None:
+    for name, fig in figures.items():
         path = root / name
         with atomic_path(path) as tmp:
             fig.savefig(tmp, format="png", dpi=120, bbox_inches="tight")
-        plt.close(fig)
         written.append(path)
+    return written
 
-    fig, ax = plt.subplots(figsize=(6, 4))
+
+def _figure(width: float, height: float) -> tuple[Figure, Any]:
+    fig = Figure(figsize=(width, height))
+    FigureCanvasAgg(fig)
+    return fig, fig.add_subplot()
+
+
+def _quality_figure(stats: DatasetStats) -> Figure:
+    fig, ax = _figure(6, 4)
     both = np.concatenate([stats.quality_passing, stats.quality_failing])
     if both.size:
         bins = np.linspace(0.0, float(np.percentile(both, 99.5)) or 1.0, 50)
@@ -128,9 +154,11 @@ def plot_stats(stats: DatasetStats, out: str | os.PathLike[str]) -> list[Path]:
     ax.set_xlabel("Q(G) = sqrt(det(G G^T))")
     ax.set_ylabel("dual grasps")
     ax.set_title("Grasp-matrix quality of stored pairs (paper Fig. 4)")
-    save(fig, "quality_hist.png")
+    return fig
 
-    fig, ax = plt.subplots(figsize=(max(6, 0.25 * len(stats.objects)), 4))
+
+def _passes_figure(stats: DatasetStats) -> Figure:
+    fig, ax = _figure(max(6, 0.25 * len(stats.objects)), 4)
     x = np.arange(len(stats.objects))
     ax.bar(x, stats.passing, color="tab:green", label="passing")
     ax.bar(x, stats.failing, bottom=stats.passing, color="tab:red", label="failing")
@@ -138,13 +166,14 @@ def plot_stats(stats: DatasetStats, out: str | os.PathLike[str]) -> list[Path]:
     ax.set_ylabel("stored pairs")
     ax.set_title("Stored pairs per object")
     ax.legend()
-    save(fig, "passes_per_object.png")
+    return fig
 
-    fig, ax = plt.subplots(figsize=(6, 4))
+
+def _loss_figure(stats: DatasetStats) -> Figure:
+    fig, ax = _figure(6, 4)
     if stats.loss_failing.size:
         ax.hist(stats.loss_failing, bins=50, color="tab:red")
     ax.set_xlabel("force-closure loss of failing pairs (N)")
     ax.set_ylabel("dual grasps")
     ax.set_title("Loss distribution of stored failing pairs")
-    save(fig, "loss_hist.png")
-    return written
+    return fig

@@ -8,15 +8,18 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
+
+from .cli import add_command
 
 EXAMPLES = (
     "  # a DG16M release file (the release used the outward normal as the cone axis)\n"
     "  dg16m verify ../shared/data/real/dg16m_airplane.h5 \\\n"
     "      --mesh ../shared/data/real/dg16m_airplane.obj --convention release\n"
-    "  # a file made by dg16m (physical convention), full report as JSON, exit 1 on\n"
-    "  # disagreements that ambiguous normals do not explain\n"
-    "  dg16m verify runs/data/table_s3.h5 --mesh runs/objects/table_s3.obj \\\n"
-    "      --json runs/verify_table_s3.json --strict\n"
+    "  # a file of 'dg16m generate --procedural 20 --out runs/dataset' (physical convention),\n"
+    "  # full report as JSON, exit 1 on disagreements that ambiguous normals do not explain\n"
+    "  dg16m verify runs/dataset/grasps/table-0000000.h5 \\\n"
+    "      --mesh runs/dataset/meshes/table-0000000.obj --json runs/verify_table.json --strict\n"
 )
 
 DESCRIPTION = (
@@ -33,14 +36,14 @@ DESCRIPTION = (
 )
 
 
-def register(subparsers) -> None:
+def register(subparsers: Any) -> None:
     """Add ``dg16m verify`` to the ``dg16m`` parser."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "verify",
-        help="Recompute the force-closure verdicts of a DG16M file and compare with the stored ones.",
+        "Recompute the force-closure verdicts of a DG16M file and compare with the stored ones.",
+        EXAMPLES,
         description=DESCRIPTION,
-        epilog="examples:\n" + EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("file", type=Path, metavar="FILE", help="DG16M release-schema HDF5 file")
     parser.add_argument(

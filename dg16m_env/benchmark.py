@@ -6,10 +6,11 @@ For each object of the procedural ``benchmark`` split (300 objects, 10 families 
 user's meshes with DG16M grasp files:
 
 1. sample :attr:`BenchmarkParameters.n_grasps` antipodal single-arm grasps (Panda hand);
-2. pair them like the generator (0.1 m centre pruning, gripper-gripper collision) and check force
-   closure; draw up to ``n_passing`` passing and ``n_failing`` failing candidates, plus
-   ``n_random`` uniformly random pairs of the same grasps (the paper's ablation, scored too), so
-   that labels are mixed; with a DG16M file instead, draw its stored passing / failing pairs;
+2. pair them like the generator (``PAPER.min_center_distance`` centre pruning, gripper-gripper
+   collision) and check force closure; draw up to ``n_passing`` passing and ``n_failing``
+   failing candidates, plus ``n_random`` uniformly random pairs of the same grasps (the paper's
+   ablation, scored too), so that labels are mixed; with a DG16M file instead, draw its stored
+   passing / failing pairs (:func:`choose_file_pairs`);
 3. run the trial protocol (:mod:`dg16m_env.trial`) on every pair: the simulation label.
 
 Objects are independent tasks (process pool or Ray); each finished object is written to
@@ -43,7 +44,6 @@ m), ``contacts_after_close`` and ``contacts_final`` ((N, 2) int16), ``ejected`` 
 from __future__ import annotations
 
 import json
-import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
@@ -54,6 +54,7 @@ import h5py
 import numpy as np
 
 from dataset_gen.atomic import atomic_path
+from dataset_gen.checks import check_fields, known_fields
 from dataset_gen.errors import Dg16mError
 from dataset_gen.force_closure import evaluate
 from dataset_gen.gripper import get_gripper
@@ -72,6 +73,7 @@ from dataset_gen.pairing import (
     score_pairs,
 )
 from dataset_gen.parallel import Backend, run_resumable
+from dataset_gen.parameters import PAPER
 from dataset_gen.procedural import benchmark_specs
 from dataset_gen.sampling import sample_antipodal_grasps
 from dataset_gen.sources import ObjectSource, mesh_sources, object_seed, procedural_sources
@@ -91,7 +93,8 @@ pairs (the ablation), or the passing / failing pairs of a user's DG16M file."""
 EMBEDDED_BENCHMARK = Path(__file__).with_name("data") / BENCHMARK_FILE
 """The procedural benchmark built with the default parameters, shipped with the package."""
 
-_FLOAT_SIM = ("max_displacement", "max_rotation_deg", "max_penetration")
+FLOAT_SIM = ("max_displacement", "max_rotation_deg", "max_penetration")
+"""The float fields of the trial results (the others are codes, counts and flags)."""
 
 
 class BenchmarkError(Dg16mError, ValueError):
@@ -116,6 +119,10 @@ class BenchmarkParameters:
         min_center_distance: pruning distance of the candidates (m).
         scene: simulation constants (``friction`` is set from ``mu``).
         protocol: trial protocol (``gravity`` is used by force closure too).
+
+    ``mu``, ``mass``, ``f_high``, ``threshold``, ``min_center_distance`` and the scene's and
+    protocol's friction, squeeze force and gravity default to the paper's values
+    (:data:`dataset_gen.parameters.PAPER`).
     """
 
     seed: int = 0
@@ -123,24 +130,22 @@ class BenchmarkParameters:
     n_passing: int = 40
     n_failing: int = 30
     n_random: int = 30
-    mu: float = 0.4
-    mass: float = 6.0
-    f_high: float = 70.0
-    threshold: float = 1e-5
-    min_center_distance: float = 0.1
+    mu: float = PAPER.mu
+    mass: float = PAPER.mass
+    f_high: float = PAPER.f_high
+    threshold: float = PAPER.threshold
+    min_center_distance: float = PAPER.min_center_distance
     scene: SceneParameters = field(default_factory=SceneParameters)
     protocol: TrialProtocol = field(default_factory=TrialProtocol)
 
     def __post_init__(self) -> None:
-        for name in ("seed", "n_grasps", "n_passing", "n_failing", "n_random"):
-            value = getattr(self, name)
-            low = 2 if name == "n_grasps" else 0
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
-                raise BenchmarkError(f"{name}: expected an integer >= {low}, found {value!r}")
-        for name in ("mu", "mass", "f_high", "threshold"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise BenchmarkError(f"{name}: expected a positive number, found {value!r}")
+        check_fields(
+            self,
+            error=BenchmarkError,
+            integers={"seed": 0, "n_grasps": 2, "n_passing": 0, "n_failing": 0, "n_random": 0},
+            zero_allowed=("min_center_distance",),
+            skip=("scene", "protocol"),
+        )
         if self.scene.friction != self.mu:
             object.__setattr__(self, "scene", replace(self.scene, friction=self.mu))
 
@@ -148,6 +153,24 @@ class BenchmarkParameters:
         out = asdict(self)
         out["scene"] = self.scene.to_dict()
         return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> BenchmarkParameters:
+        """The parameters :meth:`to_dict` wrote (a benchmark file's ``metadata["parameters"]``),
+        with their scene and protocol; missing keys take their defaults.
+
+        Raises:
+            BenchmarkError: not a mapping, unknown keys or bad values (at any level).
+        """
+        values = known_fields(cls, data, what="parameters", error=BenchmarkError)
+        try:
+            if "scene" in values:
+                values["scene"] = SceneParameters.from_dict(values["scene"])
+            if "protocol" in values:
+                values["protocol"] = TrialProtocol.from_dict(values["protocol"])
+        except Dg16mError as exc:
+            raise BenchmarkError(f"parameters: {exc}") from None
+        return cls(**values)
 
 
 # --------------------------------------------------------------------------------------------
@@ -178,9 +201,17 @@ class BenchmarkObject:
             raise BenchmarkError(
                 f"{self.object_id}: expected a mesh folder holding {self.file!r}, found none given"
             )
+        # The stored scale is what the benchmark was built with: no plausibility check on size.
         return ObjectSource(
-            self.object_id, mesh=Path(mesh_root) / self.file, scale=self.scale
+            self.object_id, mesh=Path(mesh_root) / self.file, scale=self.scale, allow_any_size=True
         ).load(self.mass)
+
+    def __repr__(self) -> str:  # parts hold every hull vertex: count them instead
+        origin = f"{self.family} seed {self.seed}" if self.family else f"mesh {self.file!r}"
+        return (
+            f"BenchmarkObject({self.object_id!r}, {origin}, scale {self.scale:.4g}, "
+            f"mass {self.mass:.4g} kg, {len(self.parts)} convex parts)"
+        )
 
 
 @dataclass(eq=False)
@@ -218,6 +249,21 @@ class Benchmark:
     def labels(self) -> np.ndarray:
         """(N,) bool simulation labels (True: the dual grasp held)."""
         return self.trials.success
+
+    def parameters(self) -> BenchmarkParameters:
+        """The parameters the benchmark was built with (from its metadata; scene and protocol
+        included), e.g. ``bench.parameters().scene`` to compile a scene the way it was labelled.
+
+        Raises:
+            BenchmarkError: the metadata's parameters are malformed.
+        """
+        return BenchmarkParameters.from_dict(self.metadata.get("parameters", {}))
+
+    def __repr__(self) -> str:  # N rows of poses and contacts: counts, not contents
+        return (
+            f"Benchmark({len(self.objects)} objects, {self.n} dual grasps, "
+            f"{int(self.labels.sum())} labelled success, {int((~self.trials.valid).sum())} invalid)"
+        )
 
     def object_rows(self, object_id: str) -> np.ndarray:
         """Rows of one object."""
@@ -401,7 +447,7 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
         sim = {}
         for name in TrialResults.ARRAY_FIELDS:
             shape: tuple[int | None, ...] = (n, 2) if name.startswith("contacts") else (n,)
-            kinds = "f" if name in _FLOAT_SIM else ("b" if name == "ejected" else "i")
+            kinds = "f" if name in FLOAT_SIM else ("b" if name == "ejected" else "i")
             sim[name] = _read(f, path, f"sim/{name}", shape, kinds)
     if n and (index.min() < 0 or index.max() >= o):
         raise BenchmarkError(
@@ -429,7 +475,10 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
                 parts,
             )
         )
-    protocol = TrialProtocol(**metadata.get("parameters", {}).get("protocol", {}))
+    try:
+        protocol = TrialProtocol.from_dict(metadata.get("parameters", {}).get("protocol", {}))
+    except Dg16mError as exc:
+        raise BenchmarkError(f"{path}: metadata: {exc}") from None
     return Benchmark(
         objects=objects,
         object_index=index.astype(np.int32),
@@ -478,6 +527,18 @@ def retarget_poses(poses: np.ndarray, from_gripper: str, to_gripper: str = "pand
     out = np.array(poses, dtype=np.float64, copy=True)
     out[..., :3, 3] += shift * out[..., :3, 1]
     return out
+
+
+def file_gripper(data: DualGraspSet, gripper: str | None = None) -> str:
+    """The gripper whose frame a DG16M file's poses use: ``gripper`` when given, else the one the
+    file records, else robotiq_2f85 (the release's)."""
+    return gripper or data.metadata.get("gripper", "robotiq_2f85")
+
+
+def file_poses(data: DualGraspSet, rows: np.ndarray, gripper: str | None = None) -> np.ndarray:
+    """(len(rows), 2, 4, 4) the Panda hand poses of a DG16M file's pairs ``rows``: the file's
+    poses moved from :func:`file_gripper`'s frame to the Panda's (:func:`retarget_poses`)."""
+    return retarget_poses(data.grasps[rows], file_gripper(data, gripper))
 
 
 def _object_metadata(
@@ -533,20 +594,49 @@ def sampled_pairs(
     }
 
 
+def choose_file_pairs(
+    data: DualGraspSet,
+    n_passing: int | None,
+    n_failing: int | None,
+    rng: np.random.Generator,
+    *,
+    fill: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Which of a DG16M file's stored pairs to simulate: a seeded sample of its passing and of
+    its failing pairs (each sorted; ``None`` takes all of that kind).
+
+    Args:
+        data: the file's contents (:func:`dataset_gen.io.read_dg16m`).
+        n_passing: passing pairs to draw (at most).
+        n_failing: failing pairs to draw (at most).
+        rng: the stream the samples come from (passing first, then failing).
+        fill: when the file has fewer passing pairs than ``n_passing``, draw the shortfall from
+            the failing ones (the benchmark's rule, so every object keeps its row count).
+
+    Returns:
+        ``(passing, failing)`` row indices into ``data``.
+    """
+    passing = np.sort(data.passing_indices)
+    take_pass = passing if n_passing is None else _choose(passing, n_passing, rng)
+    want_fail = n_failing
+    if fill and n_failing is not None and n_passing is not None:
+        want_fail = n_failing + n_passing - take_pass.size
+    failed = np.sort(data.failed_indices)
+    take_fail = failed if want_fail is None else _choose(failed, want_fail, rng)
+    return take_pass, take_fail
+
+
 def _file_pairs(
     item: BenchmarkSource,
     data: DualGraspSet,
     params: BenchmarkParameters,
     rng: np.random.Generator,
 ) -> dict[str, np.ndarray]:
-    take_pass = _choose(np.sort(data.passing_indices), params.n_passing, rng)
-    want_fail = params.n_failing + params.n_passing - take_pass.size
-    take_fail = _choose(np.sort(data.failed_indices), want_fail, rng)
+    take_pass, take_fail = choose_file_pairs(data, params.n_passing, params.n_failing, rng)
     rows = np.concatenate([take_pass, take_fail])
-    gripper = item.grasp_gripper or data.metadata.get("gripper", "robotiq_2f85")
     normals = data.extras.get("contact_normals")
     return {
-        "poses": retarget_poses(data.grasps[rows], gripper),
+        "poses": file_poses(data, rows, item.grasp_gripper),
         "contact_points": data.contact_points[rows],
         "contact_normals": (
             normals[rows] if normals is not None else np.full((rows.size, 4, 3), np.nan)
@@ -569,8 +659,9 @@ def benchmark_object(item: BenchmarkSource, params: BenchmarkParameters) -> Benc
     source = item.source
     data = read_dg16m(item.grasp_file) if item.grasp_file is not None else None
     if data is not None and source.mesh is not None and source.scale is None:
-        # A DG16M file records the mesh scale its contacts were computed with.
-        source = replace(source, scale=data.object_scale)
+        # A DG16M file records the mesh scale its contacts were computed with; that scale is
+        # authoritative, so the size is not second-guessed.
+        source = replace(source, scale=data.object_scale, allow_any_size=True)
     obj = source.load(params.mass)
     parts = object_parts(obj)
     rng = np.random.default_rng(object_seed(params.seed, f"benchmark:{obj.object_id}"))
@@ -656,7 +747,8 @@ def file_benchmark_sources(
         source = by_name.get(named) or by_stem.get(object_id)
         if source is None:
             raise BenchmarkError(
-                f"{object_id}: expected its mesh {named!r} (or {object_id}.*) in {meshes}, found none"
+                f"{object_id}: expected its mesh {named!r} (or {object_id}.*) in {meshes}, "
+                "found none"
             )
         source = replace(source, object_id=object_id)
         out.append(BenchmarkSource(source, grasp_file=grasp_file, grasp_gripper=grasp_gripper))

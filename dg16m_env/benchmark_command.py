@@ -7,6 +7,14 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import Any
+
+from dataset_gen.cli import add_command
+
+BENCHMARK_EXAMPLES = (
+    "  dg16m benchmark build --out runs/bench10 --limit 10\n"
+    "  dg16m benchmark info runs/bench10/benchmark.h5\n"
+)
 
 BUILD_EXAMPLES = (
     "  # the 300-object procedural benchmark on 2 local processes (about 10 minutes)\n"
@@ -24,18 +32,22 @@ INFO_EXAMPLES = (
 )
 
 
-def register(subparsers) -> None:
+def register(subparsers: Any) -> None:
     """Add ``dg16m benchmark {build,info}``."""
-    bench = subparsers.add_parser(
+    bench = add_command(
+        subparsers,
         "benchmark",
-        help="Build or summarise the MuJoCo dual-grasp benchmark (sim-labelled dual grasps).",
+        "Build or summarise the MuJoCo dual-grasp benchmark (sim-labelled dual grasps).",
+        BENCHMARK_EXAMPLES,
         description="Dual grasps on fixed objects, each labelled by a MuJoCo trial (see "
         "'dg16m benchmark build --help').",
     )
     sub = bench.add_subparsers(dest="benchmark_command", metavar="ACTION", required=True)
-    build = sub.add_parser(
+    build = add_command(
+        sub,
         "build",
-        help="Sample, pair, check force closure and simulate: one benchmark file.",
+        "Sample, pair, check force closure and simulate: one benchmark file.",
+        BUILD_EXAMPLES,
         description=(
             "For each object: sample single-arm grasps, pair them, check force closure, draw "
             "passing, failing and random pairs (about 100), and label each by a MuJoCo trial "
@@ -43,8 +55,6 @@ def register(subparsers) -> None:
             "degrees of the hands). Writes OUT/objects/<id>.h5, OUT/manifest.json and "
             "OUT/benchmark.h5. Results do not depend on --workers or --backend; reruns resume."
         ),
-        epilog="examples:\n" + BUILD_EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     build.add_argument("--out", type=Path, required=True, help="output folder")
     build.add_argument(
@@ -68,13 +78,13 @@ def register(subparsers) -> None:
     build.add_argument("--no-progress", action="store_true", help="no progress bar")
     build.set_defaults(handler=_build)
 
-    info = sub.add_parser(
+    info = add_command(
+        sub,
         "info",
-        help="Summarise a benchmark file: success rates by source and family, penetration.",
+        "Summarise a benchmark file: success rates by source and family, penetration.",
+        INFO_EXAMPLES,
         description="Print success rates of force-closure-passing, failing and random pairs, "
         "failure phases and the deepest penetration; optionally plot them.",
-        epilog="examples:\n" + INFO_EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     info.add_argument(
         "file", type=Path, nargs="?", default=None, help="benchmark.h5 (default: the shipped one)"

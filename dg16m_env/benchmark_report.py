@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import math
 import os
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -35,40 +37,54 @@ def summary_by_family(bench: Benchmark) -> dict[str, dict[str, Any]]:
     return out
 
 
-def _pct(value: float | None) -> str:
-    return "  n/a" if value is None else f"{100 * value:5.1f}%"
+def percent(value: float | None) -> str:
+    """A rate for people: ``" 42.5%"``, or ``"  n/a"`` when there is none."""
+    return "  n/a" if value is None or not math.isfinite(value) else f"{100 * value:5.1f}%"
+
+
+def trial_lines(summary: Mapping[str, Any]) -> list[str]:
+    """Lines for :meth:`~dg16m_env.trial.TrialResults.summary`: simulated, invalid, outcomes,
+    the deepest penetration while held, failures by phase."""
+    ran = summary["trials"] - summary["invalid"]
+    lines = [
+        f"{ran} simulated, {summary['invalid']} invalid (open hands penetrate or overlap; not "
+        f"run): {summary['success']} success, {summary['failed']} failed, "
+        f"{summary['unstable']} unstable ({summary['ejected']} ejected)",
+        f"deepest penetration while held: {1000 * summary['max_penetration_m']:.3f} mm",
+    ]
+    if summary["failing_phases"]:
+        phases = ", ".join(f"{k} {v}" for k, v in summary["failing_phases"].items())
+        lines.append(f"failures by phase: {phases}")
+    return lines
 
 
 def format_summary(bench: Benchmark) -> str:
     """A few lines for the terminal."""
     s = bench.summary()
-    t = s["trials"]
-    lines = [
-        f"{s['objects']} objects, {s['pairs']} dual grasps: {t['trials'] - t['invalid']} simulated, "
-        f"{t['invalid']} invalid (open hands penetrate or overlap), {t['unstable']} unstable",
-        f"sim success, force-closure passing pairs: {_pct(s['sim_success_rate_fc_passing'])}",
-        f"sim success, force-closure failing pairs: {_pct(s['sim_success_rate_fc_failing'])}",
-        f"sim success, random pairs:                {_pct(s['sim_success_rate_random'])}",
-        f"deepest penetration while held: {1000 * t['max_penetration_m']:.3f} mm; "
-        f"objects ejected: {t['ejected']}",
-    ]
-    if t["failing_phases"]:
-        phases = ", ".join(f"{k} {v}" for k, v in t["failing_phases"].items())
-        lines.append(f"failures by phase: {phases}")
-    return "\n".join(lines)
+    return "\n".join(
+        [
+            f"{s['objects']} objects, {s['pairs']} dual grasps",
+            *trial_lines(s["trials"]),
+            "sim success, force-closure passing pairs: "
+            + percent(s["sim_success_rate_fc_passing"]),
+            "sim success, force-closure failing pairs: "
+            + percent(s["sim_success_rate_fc_failing"]),
+            "sim success, random pairs:                " + percent(s["sim_success_rate_random"]),
+        ]
+    )
 
 
 def plot_summary(bench: Benchmark, path: str | os.PathLike[str]) -> None:
     """Three panels: success rate by pair source, by family (FC-passing vs random), and the
     phase where failures happen. Written atomically as PNG."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     s = bench.summary()
     families = summary_by_family(bench)
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.5), gridspec_kw={"width_ratios": [1, 2.2, 2]})
+    fig = Figure(figsize=(16, 4.5))
+    FigureCanvasAgg(fig)  # no pyplot: no global state, no backend switch
+    axes = fig.subplots(1, 3, gridspec_kw={"width_ratios": [1, 2.2, 2]})
     names = list(s["by_source"])
     rates = [s["by_source"][n]["sim_success_rate"] or 0.0 for n in names]
     axes[0].bar(
@@ -102,4 +118,3 @@ def plot_summary(bench: Benchmark, path: str | os.PathLike[str]) -> None:
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)

@@ -17,6 +17,7 @@ import numpy as np
 from dataset_gen.errors import Dg16mError
 from dataset_gen.objects import ConvexPart
 from dataset_gen.parallel import Backend, run_tasks
+from dataset_gen.parameters import PAPER
 from dataset_gen.sources import ObjectSource
 from dg16m_env.decomposition import object_parts
 from dg16m_env.scene import SceneParameters, compile_scene
@@ -36,17 +37,24 @@ class GraspJob:
         poses: (N, 2, 4, 4) hand poses, Panda grasp frame -> object frame (m).
         parts: convex parts to simulate (default: the object's own, or a cached CoACD
             decomposition for meshes).
-        mass: object mass (kg).
+        mass: object mass (kg; default ``PAPER.mass``, the release's).
     """
 
     source: ObjectSource
     poses: np.ndarray
     parts: tuple[ConvexPart, ...] | None = None
-    mass: float = 6.0
+    mass: float = PAPER.mass
 
     @property
     def object_id(self) -> str:
         return self.source.object_id
+
+    def __repr__(self) -> str:  # poses and parts are arrays: count them
+        parts = "own parts" if self.parts is None else f"{len(self.parts)} parts"
+        return (
+            f"GraspJob({self.object_id!r}, {len(np.asarray(self.poses))} dual grasps, {parts}, "
+            f"mass {self.mass:g} kg)"
+        )
 
 
 @dataclass
@@ -61,6 +69,13 @@ class GsrResult:
         ran = sum(int(r.valid.sum()) for r in self.results.values())
         won = sum(int(r.success.sum()) for r in self.results.values())
         return won / ran if ran else float("nan")
+
+    def __repr__(self) -> str:  # one TrialResults per object: totals instead
+        trials = sum(r.n for r in self.results.values())
+        return (
+            f"GsrResult({len(self.results)} objects, {trials} trials, success rate "
+            f"{self.success_rate():.3f}, {len(self.errors)} failed objects)"
+        )
 
     def summary(self) -> dict[str, Any]:
         return {

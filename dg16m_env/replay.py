@@ -54,8 +54,8 @@ from dg16m_env.trial import (
     check_initial_poses,
     grasp_centres,
     initial_state,
-    quat_to_matrix,
-    rotation_deg,
+    object_motion,
+    object_states,
     schedule,
     trial_controls,
 )
@@ -146,12 +146,8 @@ class SteppedTrial:
         trial held or was not run."""
         if self.status in (TrialStatus.SUCCESS, TrialStatus.INVALID):
             return None
-        protocol = self.results.protocol
-        with np.errstate(invalid="ignore"):
-            out = (self.slip > protocol.max_displacement) | (
-                self.rotation_deg > protocol.max_rotation_deg
-            )
-            out |= ~np.isfinite(self.slip)
+        out = self.results.protocol.out_of_bounds(self.slip, self.rotation_deg)
+        out |= ~np.isfinite(self.slip)
         hits = np.flatnonzero(out[1 : self.end + 1])
         return int(hits[0]) + 1 if hits.size else None
 
@@ -164,6 +160,9 @@ class SteppedTrial:
     def describe(self) -> str:
         """One line: the verdict with its measurements."""
         return describe_result(self.results, 0)
+
+    def __repr__(self) -> str:  # states are (T + 1, S): describe the trial instead
+        return f"SteppedTrial({len(self.states) - 1} steps: {self.describe()})"
 
 
 def describe_result(results: TrialResults, row: int) -> str:
@@ -184,21 +183,12 @@ def describe_result(results: TrialResults, row: int) -> str:
 def _motion(
     scene: Scene, states: np.ndarray, anchors: np.ndarray, close: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Per-state slip (m) and rotation (deg) of the object, as :func:`~dg16m_env.trial.analyse`
-    measures them (``states[0]`` is the start, ``states[k]`` the state after step ``k``)."""
-    q0 = 1 + scene.object_qpos.start  # state = [time, qpos, ...]
-    pos = states[:, q0 : q0 + 3]
-    quat = states[:, q0 + 3 : q0 + 7]
-    rot = quat_to_matrix(quat)
-    during = np.einsum("tij,kj->tki", rot, anchors) + pos[:, None]
-    moved = during - anchors[None]
-    rotation = rotation_deg(quat, np.array([1.0, 0.0, 0.0, 0.0]))
-    if len(states) > close:  # after close: material points at the anchors at the end of close
-        body = np.einsum("ji,kj->ki", rot[close], anchors - pos[close])
-        after = np.einsum("tij,kj->tki", rot[close + 1 :], body) + pos[close + 1 :, None]
-        moved[close + 1 :] = after - anchors[None]
-        rotation[close + 1 :] = rotation_deg(quat[close + 1 :], quat[close][None])
-    return np.linalg.norm(moved, axis=-1).max(axis=-1), rotation
+    """Per-state slip (m) and rotation (deg) of the object, measured by the protocol's own
+    :func:`~dg16m_env.trial.object_motion` (``states[0]`` is the start, ``states[k]`` the state
+    after step ``k``, so the close phase holds ``close + 1`` states)."""
+    pos, quat, _ = object_states(scene, states[None])
+    slip, rotation = object_motion(pos, quat, anchors[None], close + 1)
+    return slip[0], rotation[0]
 
 
 def step_trial(
@@ -453,6 +443,10 @@ class Replay:
     captions: list[str]
     steps: list[int]
 
+    def __repr__(self) -> str:  # frames are images: give their count and size
+        size = "x".join(str(v) for v in self.frames[0].shape[1::-1]) if self.frames else "-"
+        return f"Replay({len(self.frames)} frames of {size}: {self.trial.describe()})"
+
 
 def replay_trial(
     scene: Scene,
@@ -464,7 +458,7 @@ def replay_trial(
     height: int = 360,
     camera: mujoco.MjvCamera | Mapping[str, Any] | None = None,
 ) -> Replay:
-    """:func:`step_trial` then render it (see :func:`trial_frames`)."""
+    """:func:`step_trial` then render it (frames as :func:`trial_frames` describes)."""
     check_size(width, height)
     stepped = step_trial(scene, dual_grasp, protocol)
     steps = frame_steps(stepped, n_frames)
@@ -473,16 +467,9 @@ def replay_trial(
 
 
 def trial_frames(
-    scene: Scene,
-    dual_grasp: np.ndarray,
-    protocol: TrialProtocol | None = None,
-    *,
-    n_frames: int = 8,
-    width: int = 480,
-    height: int = 360,
-    camera: mujoco.MjvCamera | Mapping[str, Any] | None = None,
+    scene: Scene, dual_grasp: np.ndarray, protocol: TrialProtocol | None = None, **options: Any
 ) -> tuple[list[np.ndarray], list[str]]:
-    """Simulate one trial step by step and render it.
+    """Simulate one trial step by step and render it: :func:`replay_trial`'s frames and captions.
 
     Frames are spread evenly over the part of the trial that decides the verdict (the whole
     trial when the grasp held, up to the end of the failing phase when it failed), always with
@@ -493,10 +480,11 @@ def trial_frames(
         scene: the object's compiled scene.
         dual_grasp: (2, 4, 4) hand poses, gripper frame -> object frame (m).
         protocol: the trial protocol (default :class:`TrialProtocol`).
-        n_frames: evenly spread frames (the key frames above come on top when not among them).
-        width, height: frame size (pixels).
-        camera: a ``mujoco.MjvCamera``, or a mapping overriding :func:`default_camera`'s
-            ``lookat`` (m), ``distance`` (m), ``azimuth`` and ``elevation`` (degrees).
+        options: :func:`replay_trial`'s keywords: ``n_frames`` (evenly spread frames; the key
+            frames above come on top when not among them), ``width``, ``height`` (pixels) and
+            ``camera`` (a ``mujoco.MjvCamera``, or a mapping overriding
+            :func:`default_camera`'s ``lookat`` (m), ``distance`` (m), ``azimuth`` and
+            ``elevation`` (degrees)).
 
     Returns:
         ``(frames, captions)``: (H, W, 3) uint8 RGB frames and ``"t=1.20 s  force+y  slip 3.1 mm"``
@@ -507,15 +495,7 @@ def trial_frames(
         ReplayError: bad frame count or size.
         TrialError: malformed poses.
     """
-    replay = replay_trial(
-        scene,
-        dual_grasp,
-        protocol,
-        n_frames=n_frames,
-        width=width,
-        height=height,
-        camera=camera,
-    )
+    replay = replay_trial(scene, dual_grasp, protocol, **options)
     return replay.frames, replay.captions
 
 
@@ -554,10 +534,8 @@ def write_strip(
         raise ReplayError(
             f"captions: expected one per frame ({len(frames)}), found {len(captions)}"
         )
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     n = len(frames)
     columns = columns or (n if n <= 4 else 4)
@@ -569,36 +547,32 @@ def write_strip(
     caption_in = 0.3
     title_in = (0.2 + 0.2 * (title.count("\n") + 1)) if title else 0.0
     fig_h = rows * (height / dpi + caption_in) + title_in
-    fig = plt.figure(figsize=(fig_w, fig_h), dpi=dpi)
-    try:
-        for i, (frame, text) in enumerate(zip(frames, captions, strict=True)):
-            r, c = divmod(i, columns)
-            bottom = fig_h - title_in - (r + 1) * (height / dpi + caption_in) + caption_in
-            ax = fig.add_axes((c / columns, bottom / fig_h, 1.0 / columns, (height / dpi) / fig_h))
-            ax.imshow(frame, interpolation="nearest")
-            ax.set_axis_off()
-            label = ax.text(
-                0.5,
-                -caption_in * 0.45 / (height / dpi),
-                text,
-                transform=ax.transAxes,
-                ha="center",
-                va="center",
-                fontsize=9,
-                family="monospace",
-            )
-            drawn = label.get_window_extent(renderer=fig.canvas.get_renderer()).width
-            if drawn > 0.96 * width:  # shrink to fit under its frame
-                label.set_fontsize(max(4.0, 9.0 * 0.96 * width / drawn))
-        if title:
-            fig.text(
-                0.5, 1.0 - title_in * 0.5 / fig_h, title, ha="center", va="center", fontsize=10
-            )
-        out = Path(path)
-        with atomic_path(out) as tmp:
-            fig.savefig(tmp, format="png", dpi=dpi, facecolor="white")
-    finally:
-        plt.close(fig)
+    fig = Figure(figsize=(fig_w, fig_h), dpi=dpi)
+    canvas = FigureCanvasAgg(fig)  # no pyplot: no global state, no backend switch
+    for i, (frame, text) in enumerate(zip(frames, captions, strict=True)):
+        r, c = divmod(i, columns)
+        bottom = fig_h - title_in - (r + 1) * (height / dpi + caption_in) + caption_in
+        ax = fig.add_axes((c / columns, bottom / fig_h, 1.0 / columns, (height / dpi) / fig_h))
+        ax.imshow(frame, interpolation="nearest")
+        ax.set_axis_off()
+        label = ax.text(
+            0.5,
+            -caption_in * 0.45 / (height / dpi),
+            text,
+            transform=ax.transAxes,
+            ha="center",
+            va="center",
+            fontsize=9,
+            family="monospace",
+        )
+        drawn = label.get_window_extent(renderer=canvas.get_renderer()).width
+        if drawn > 0.96 * width:  # shrink to fit under its frame
+            label.set_fontsize(max(4.0, 9.0 * 0.96 * width / drawn))
+    if title:
+        fig.text(0.5, 1.0 - title_in * 0.5 / fig_h, title, ha="center", va="center", fontsize=10)
+    out = Path(path)
+    with atomic_path(out) as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi, facecolor="white")
     return out
 
 

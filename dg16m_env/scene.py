@@ -35,7 +35,7 @@ its convex hull, so non-convex objects need their convex parts; see
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -43,9 +43,11 @@ import mujoco
 import numpy as np
 from dm_control import mjcf
 
+from dataset_gen.checks import check_fields, check_number, known_fields
 from dataset_gen.errors import Dg16mError
 from dataset_gen.gripper import PANDA, GripperModel, get_gripper
 from dataset_gen.objects import ConvexPart, GraspObject
+from dataset_gen.parameters import PAPER
 
 HAND_NAMES = ("hand0", "hand1")
 """Attachment prefixes of the two hands (MJCF namespaces)."""
@@ -66,6 +68,13 @@ class SceneError(Dg16mError, ValueError):
     """A scene cannot be built from the given object, gripper or parameters."""
 
 
+def _real(name: str, value: object) -> float:
+    """``value`` as a float if it is a finite number of any sign (not a bool); else SceneError."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise SceneError(f"{name}: expected a finite number, found {value!r}")
+    return float(value)
+
+
 @dataclass(frozen=True)
 class SceneParameters:
     """Physical constants of the scene (SI units).
@@ -73,12 +82,12 @@ class SceneParameters:
     Attributes:
         timestep: integration step (s).
         friction: sliding friction coefficient between fingers and object (the force-closure
-            check's ``mu``; the release used 0.4).
+            check's ``mu``; default ``PAPER.mu``, the release's value).
         torsional_friction: torsional friction (m), MuJoCo's second friction coefficient.
         rolling_friction: rolling friction (m).
         squeeze_force: closing force of each finger (N): one tendon actuator drives both finger
-            joints of a hand, so each finger pushes with this force (the Panda's continuous
-            force is 70 N; it is also the force-closure check's ``f_high``).
+            joints of a hand, so each finger pushes with this force (default ``PAPER.f_high``:
+            the Panda's continuous force, also the force-closure check's bound).
         finger_mass: simulated mass of a finger (kg).
         finger_damping: viscous damping of a finger joint (N s/m); with ``squeeze_force`` it
             sets the free closing speed (``squeeze_force / finger_damping`` m/s).
@@ -91,10 +100,10 @@ class SceneParameters:
     """
 
     timestep: float = 0.002
-    friction: float = 0.4
+    friction: float = PAPER.mu
     torsional_friction: float = 0.005
     rolling_friction: float = 0.0001
-    squeeze_force: float = 70.0
+    squeeze_force: float = PAPER.f_high
     finger_mass: float = 1.0
     finger_damping: float = 500.0
     finger_armature: float = 0.05
@@ -105,53 +114,46 @@ class SceneParameters:
     object_mass: float | None = None
 
     def __post_init__(self) -> None:
-        def number(name: str, value: object) -> float:
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise SceneError(f"{name}: expected a number, found {value!r}")
-            if not math.isfinite(value):
-                raise SceneError(f"{name}: expected a finite number, found {value!r}")
-            return float(value)
-
-        for name in ("timestep", "friction", "squeeze_force", "finger_mass", "finger_damping"):
-            if number(name, getattr(self, name)) <= 0:
-                raise SceneError(
-                    f"{name}: expected a positive number, found {getattr(self, name)!r}"
-                )
-        for name in ("torsional_friction", "rolling_friction", "finger_armature"):
-            if number(name, getattr(self, name)) < 0:
-                raise SceneError(f"{name}: expected a number >= 0, found {getattr(self, name)!r}")
-        if number("impratio", self.impratio) < 1:
+        check_fields(
+            self,
+            error=SceneError,
+            integers={"iterations": 1},
+            zero_allowed=("torsional_friction", "rolling_friction", "finger_armature"),
+            skip=("impratio", "solref", "solimp", "object_mass"),
+        )
+        if check_number("impratio", self.impratio, error=SceneError) < 1:
             raise SceneError(f"impratio: expected a number >= 1, found {self.impratio!r}")
-        if (
-            isinstance(self.iterations, bool)
-            or not isinstance(self.iterations, int)
-            or self.iterations < 1
-        ):
-            raise SceneError(f"iterations: expected an integer >= 1, found {self.iterations!r}")
-        if self.object_mass is not None and number("object_mass", self.object_mass) <= 0:
-            raise SceneError(
-                f"object_mass: expected a positive mass (kg), found {self.object_mass}"
-            )
+        if self.object_mass is not None:
+            check_number("object_mass", self.object_mass, error=SceneError)
         if len(self.solref) != 2 or len(self.solimp) != 3:
             raise SceneError(
                 f"solref/solimp: expected 2 and 3 numbers, found {self.solref} and {self.solimp}"
             )
-        timeconst = number("solref[0]", self.solref[0])
-        if number("solref[1]", self.solref[1]) <= 0:
-            raise SceneError(
-                f"solref[1]: expected a positive damping ratio, found {self.solref[1]}"
-            )
+        timeconst = _real("solref[0]", self.solref[0])
+        check_number("solref[1]", self.solref[1], error=SceneError)  # the damping ratio
         if timeconst > 0 and timeconst < 2 * self.timestep:
             raise SceneError(
                 f"solref[0]: expected a time constant >= 2 * timestep = {2 * self.timestep} s "
                 f"(or <= 0 for that default), found {timeconst}"
             )
-        dmin, dmax, width = (number(f"solimp[{i}]", v) for i, v in enumerate(self.solimp))
+        dmin, dmax, width = (_real(f"solimp[{i}]", v) for i, v in enumerate(self.solimp))
         if not (0 < dmin <= dmax < 1) or width <= 0:
             raise SceneError(
                 "solimp: expected 0 < dmin <= dmax < 1 and a positive width (m), found "
                 f"{self.solimp}"
             )
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> SceneParameters:
+        """The parameters :meth:`to_dict` wrote (e.g. a benchmark file's metadata).
+
+        Lists become tuples; missing keys take their defaults.
+
+        Raises:
+            SceneError: ``data`` is not a mapping, has unknown keys or bad values.
+        """
+        values = known_fields(cls, data, what="scene parameters", error=SceneError)
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
 
     @property
     def contact_solref(self) -> tuple[float, float]:
@@ -168,11 +170,29 @@ class SceneParameters:
 # --------------------------------------------------------------------------------------------
 
 
-def _quat_from_matrix(R: np.ndarray) -> np.ndarray:
-    """(4,) unit quaternion ``(w, x, y, z)`` of a (3, 3) rotation."""
-    quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(R, dtype=np.float64).ravel())
-    return quat
+def quat_from_matrix(rotations: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions ``(w, x, y, z)`` of (..., 3, 3) rotations (MuJoCo's
+    ``mju_mat2Quat``, the conversion used everywhere in :mod:`dg16m_env`)."""
+    rotations = np.asarray(rotations, dtype=np.float64)
+    flat = rotations.reshape(-1, 3, 3)
+    out = np.empty((len(flat), 4))
+    for i, R in enumerate(flat):
+        mujoco.mju_mat2Quat(out[i], np.ascontiguousarray(R).ravel())
+    return out.reshape(*rotations.shape[:-2], 4)
+
+
+def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotation matrices of (..., 4) quaternions (w, x, y, z), normalised here."""
+    q = quat / np.linalg.norm(quat, axis=-1, keepdims=True)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )
 
 
 def _contact_defaults(model: mjcf.RootElement, params: SceneParameters) -> None:
@@ -269,7 +289,7 @@ def _add_part(body: Any, model: mjcf.RootElement, part: ConvexPart, index: int) 
     common = {
         "name": f"part{index}",
         "pos": part.pose[:3, 3],
-        "quat": _quat_from_matrix(part.pose[:3, :3]),
+        "quat": quat_from_matrix(part.pose[:3, :3]),
         "contype": _OBJECT_CONTYPE,
         "conaffinity": _OBJECT_CONAFFINITY,
         "rgba": (0.55, 0.65, 0.8, 1.0),
@@ -378,6 +398,8 @@ class Scene:
         object_mass: kg.
         object_body: body id of the object.
         object_qpos: slice of ``qpos`` holding the object's free joint (pos (3), quat (4)).
+        object_qvel: slice of ``qvel`` holding the free joint's velocity (linear (3) in the
+            world frame, then angular (3)), from ``model.jnt_dofadr``.
         hand_bodies: (2,) body ids of the hands (mocap bodies).
         hand_mocap: (2,) mocap ids of the hands.
         hand_geoms: per hand, the geom ids of palm and fingers.
@@ -394,6 +416,7 @@ class Scene:
     object_mass: float
     object_body: int
     object_qpos: slice
+    object_qvel: slice
     hand_bodies: np.ndarray
     hand_mocap: np.ndarray
     hand_geoms: tuple[np.ndarray, np.ndarray]
@@ -403,6 +426,14 @@ class Scene:
     gripper: GripperModel
     params: SceneParameters
     xml: str
+
+    def __repr__(self) -> str:  # the model and its XML are large: name what they hold
+        model = self.model
+        return (
+            f"Scene({self.object_id!r}, mass {self.object_mass:.3g} kg, "
+            f"{len(self.object_geoms)} object geoms, {model.nbody} bodies, {model.ngeom} geoms, "
+            f"timestep {model.opt.timestep:g} s, gripper {self.gripper.name!r})"
+        )
 
 
 def compile_scene(
@@ -452,12 +483,14 @@ def compile_scene(
     )
     joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, OBJECT_BODY)
     address = int(model.jnt_qposadr[joint])
+    dof = int(model.jnt_dofadr[joint])
     return Scene(
         model=model,
         object_id=obj.object_id,
         object_mass=float(model.body_mass[object_body]),
         object_body=object_body,
         object_qpos=slice(address, address + 7),
+        object_qvel=slice(dof, dof + 6),
         hand_bodies=hand_bodies,
         hand_mocap=np.array([model.body_mocapid[b] for b in hand_bodies]),
         hand_geoms=hand_geoms,  # type: ignore[arg-type]

@@ -14,11 +14,15 @@ import argparse
 import json
 import math
 import sys
-import textwrap
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from dataset_gen.cli import add_command
 from dataset_gen.errors import Dg16mError
+from dataset_gen.parameters import PAPER
+from dg16m_env.decomposition import DecompositionParameters
 
 
 class SimCommandError(Dg16mError, ValueError):
@@ -54,17 +58,7 @@ RUN_EXAMPLES = (
 )
 
 
-def _add(subparsers, name: str, help_text: str, description: str, examples: str):
-    return subparsers.add_parser(
-        name,
-        help=help_text,
-        description=textwrap.fill(description, 88),
-        epilog="examples:\n" + examples,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-
-
-def _object_options(parser, *, required: bool) -> None:
+def _object_options(parser: Any, *, required: bool) -> None:
     group = parser.add_mutually_exclusive_group(required=required)
     group.add_argument("--mesh", type=Path, help="the grasp file's object mesh")
     group.add_argument(
@@ -78,35 +72,50 @@ def _object_options(parser, *, required: bool) -> None:
         "hand that is simulated",
     )
     parser.add_argument(
-        "--mass", type=float, default=6.0, help="object mass in kg (default: 6, the release value)"
+        "--mass",
+        type=float,
+        default=PAPER.mass,
+        help=f"object mass in kg (default: {PAPER.mass:g}, the release value)",
+    )
+    parser.add_argument(
+        "--coacd-threshold",
+        type=float,
+        default=None,
+        metavar="T",
+        help="CoACD concavity threshold in (0, 1] for --mesh (default: "
+        f"{DecompositionParameters().threshold:g}); smaller hugs thin parts (wings, rims) "
+        "more tightly, so fewer open hands start inside a hull (slower the first time; cached)",
     )
 
 
-def register(subparsers) -> None:
+def register(subparsers: Any) -> None:
     """Add ``dg16m sim`` (``replay``, ``run``)."""
-    sim = _add(
+    sim = add_command(
         subparsers,
         "sim",
         "Simulate dual grasps in MuJoCo: replay one trial as pictures, or run a grasp file.",
-        "Simulate dual grasps with the trial protocol of dg16m_env.trial (two floating Panda "
-        "hands close on the object, then gravity and twelve disturbances; success when the "
-        "object stays put relative to the hands).",
         SIM_EXAMPLES,
+        description="Simulate dual grasps with the trial protocol of dg16m_env.trial (two "
+        "floating Panda hands close on the object, then gravity and twelve disturbances; "
+        "success when the object stays put relative to the hands).",
     )
     actions = sim.add_subparsers(dest="action", metavar="ACTION", required=True)
 
-    replay = _add(
+    replay = add_command(
         actions,
         "replay",
         "Render one trial (a benchmark row or a pair of a DG16M file) to a PNG strip or a GIF.",
-        "Replay one trial step by step and render it offscreen: frames spread evenly over the "
-        "part of the trial that decides the verdict (all of it when the grasp held, up to the end "
-        "of the failing phase when it failed), plus the end of the close phase, the first step "
-        "out of bounds and the end of the failing phase. Each frame is captioned with time, "
-        "phase and slip (the object's displacement at the hands' grasp centres). The object is "
-        "drawn translucent; hand 0 is orange, hand 1 blue, contacts are red. Prints the stored "
-        "label and the replayed outcome. Rendering needs MUJOCO_GL=egl (default) or osmesa.",
         REPLAY_EXAMPLES,
+        description=(
+            "Replay one trial step by step and render it offscreen: frames spread evenly over "
+            "the part of the trial that decides the verdict (all of it when the grasp held, up "
+            "to the end of the failing phase when it failed), plus the end of the close phase, "
+            "the first step out of bounds and the end of the failing phase. Each frame is "
+            "captioned with time, phase and slip (the object's displacement at the hands' grasp "
+            "centres). The object is drawn translucent; hand 0 is orange, hand 1 blue, contacts "
+            "are red. Prints the stored label and the replayed outcome. Rendering needs "
+            "MUJOCO_GL=egl (default) or osmesa."
+        ),
     )
     row = replay.add_argument_group("a benchmark row")
     row.add_argument(
@@ -149,14 +158,16 @@ def register(subparsers) -> None:
     output.add_argument("--fps", type=float, default=10.0, help="GIF frame rate (default: 10)")
     replay.set_defaults(handler=_replay)
 
-    run = _add(
+    run = add_command(
         actions,
         "run",
         "Run the trial protocol on a DG16M file's pairs; success of passing vs failing pairs.",
-        "Run the MuJoCo trial on the force-closure passing and failing pairs of a DG16M grasp "
-        "file and print a summary (trials, invalid, success, failing phases, penetration) and "
-        "the simulated success rate of the passing and of the failing pairs (valid trials).",
         RUN_EXAMPLES,
+        description="Run the MuJoCo trial on the force-closure passing and failing pairs of a "
+        "DG16M grasp file and print a summary (trials, invalid ones with their reasons, success, "
+        "failing phases, penetration) and the simulated success rate of the passing and of the "
+        "failing pairs (valid trials). A trial is invalid, and not run, when an open hand "
+        "already penetrates the object's convex parts or the two hands overlap.",
     )
     run.add_argument("file", type=Path, metavar="FILE.h5", help="a DG16M grasp file")
     _object_options(run, required=True)
@@ -222,6 +233,10 @@ def _check_range(option: str, value: int | None, n: int, what: str) -> int:
 
 def _grasp_object(args: argparse.Namespace, object_scale: float):
     """The GraspObject and its convex parts for ``--mesh`` / ``--procedural``."""
+    if args.coacd_threshold is not None and args.mesh is None:
+        raise SimCommandError(
+            "--coacd-threshold: expected only with --mesh (a procedural object has exact parts)"
+        )
     if args.procedural is not None:
         from dataset_gen.procedural import make_procedural_object, parse_object_id
 
@@ -231,20 +246,18 @@ def _grasp_object(args: argparse.Namespace, object_scale: float):
     from dataset_gen.objects import load_object
     from dg16m_env.decomposition import object_parts
 
-    obj = load_object(args.mesh, scale=object_scale, mass=args.mass)
+    # The grasp file's scale is authoritative: no plausibility check on the object's size.
+    obj = load_object(args.mesh, scale=object_scale, mass=args.mass, allow_any_size=True)
+    params = DecompositionParameters(
+        **({} if args.coacd_threshold is None else {"threshold": args.coacd_threshold})
+    )
     print(
-        f"convex parts of {args.mesh} (CoACD; cached after the first run) ...",
+        f"convex parts of {args.mesh} (CoACD, threshold {params.threshold:g}; cached after the "
+        "first run) ...",
         file=sys.stderr,
         flush=True,
     )
-    return obj, object_parts(obj)
-
-
-def _file_poses(data, args: argparse.Namespace, rows):
-    from dg16m_env.benchmark import retarget_poses
-
-    gripper = args.gripper or data.metadata.get("gripper", "robotiq_2f85")
-    return retarget_poses(data.grasps[rows], gripper)
+    return obj, object_parts(obj, params=params)
 
 
 def _write(replay, args: argparse.Namespace, title: str) -> None:
@@ -313,7 +326,7 @@ def _replay(args: argparse.Namespace) -> int:
 def _replay_benchmark(args, n_frames: int, width: int, height: int, camera) -> int:
     from dg16m_env.benchmark import SOURCES, read_benchmark
     from dg16m_env.replay import describe_result, replay_trial
-    from dg16m_env.scene import SceneParameters, compile_scene
+    from dg16m_env.scene import compile_scene
 
     bench = read_benchmark(args.benchmark)
     row = _check_range("--row", args.row, bench.n, "row")
@@ -324,11 +337,7 @@ def _replay_benchmark(args, n_frames: int, width: int, height: int, camera) -> i
             "object is a mesh), found none given"
         )
     obj = item.load(args.meshes)
-    stored = bench.metadata.get("parameters", {}).get("scene", {})
-    params = SceneParameters(
-        **{k: tuple(v) if isinstance(v, list) else v for k, v in stored.items()}
-    )
-    scene = compile_scene(obj, params=params, parts=item.parts)
+    scene = compile_scene(obj, params=bench.parameters().scene, parts=item.parts)
     replay = replay_trial(
         scene,
         bench.poses[row],
@@ -361,6 +370,7 @@ def _replay_benchmark(args, n_frames: int, width: int, height: int, camera) -> i
 
 def _replay_grasps(args, n_frames: int, width: int, height: int, camera) -> int:
     from dataset_gen.io import read_dg16m
+    from dg16m_env.benchmark import file_poses
     from dg16m_env.replay import replay_trial
     from dg16m_env.scene import compile_scene
 
@@ -368,7 +378,7 @@ def _replay_grasps(args, n_frames: int, width: int, height: int, camera) -> int:
     index = _check_range("--index", args.index, data.n, "pair index")
     obj, parts = _grasp_object(args, data.object_scale)
     scene = compile_scene(obj, parts=parts)
-    pose = _file_poses(data, args, [index])[0]
+    pose = file_poses(data, [index], args.gripper)[0]
     replay = replay_trial(scene, pose, n_frames=n_frames, width=width, height=height, camera=camera)
     verdict = "pass" if data.passed[index] else "fail"
     print(
@@ -388,10 +398,127 @@ def _finite(value: Any) -> Any:
     return value
 
 
-def _run(args: argparse.Namespace) -> int:
-    import numpy as np
+INVALID_MEANING = {
+    "hand0_penetrates": "the open hand 0 already sits inside the object",
+    "hand1_penetrates": "the open hand 1 already sits inside the object",
+    "hands_overlap": "the two hands overlap each other",
+}
+"""What each :class:`~dg16m_env.trial.InvalidReason` means, for people."""
 
+
+def _sim_run_report(
+    file: Path, object_id: str, results: Any, n_passing: int, hits: dict[str, int]
+) -> list[str]:
+    """The text report of ``dg16m sim run``: counts, rates, phases, and the invalid trials'
+    reasons with what to do about them."""
+    from dg16m_env.benchmark_report import percent, trial_lines
+
+    n = results.n
+    lines = [
+        f"{file}: {n} pairs on {object_id} ({n_passing} passing, {n - n_passing} failing force "
+        "closure)",
+        *(f"  {line}" for line in trial_lines(results.summary())),
+    ]
+    for name, rate in _force_closure_rates(results, n_passing).items():
+        lines.append(
+            f"  sim success, fc {name}: {percent(rate['success_rate']).strip()} "
+            f"({rate['valid']} simulated of {rate['pairs']} pairs)"
+        )
+    return lines + _invalid_report(results, hits)
+
+
+def _open_hand_hits(scene: Any, poses: np.ndarray, results: Any) -> dict[str, int]:
+    """In how many trials invalid because an open hand penetrates, the palm / a finger does."""
+    from dg16m_env.trial import InvalidReason, open_hand_penetration
+
+    rows = np.flatnonzero(
+        np.isin(
+            results.invalid_reason, [InvalidReason.HAND0_PENETRATES, InvalidReason.HAND1_PENETRATES]
+        )
+    )
+    if rows.size == 0:
+        return {}
+    inside = open_hand_penetration(scene, poses[rows]) > results.protocol.invalid_penetration
+    return {
+        "palm": int(inside[:, :, 0].any(axis=1).sum()),
+        "fingers": int(inside[:, :, 1:].any(axis=(1, 2)).sum()),
+    }
+
+
+def _invalid_report(results: Any, hits: dict[str, int]) -> list[str]:
+    reasons = results.invalid_reasons()
+    if not reasons:
+        return []
+    invalid = sum(reasons.values())
+    lines = [f"  invalid trials ({invalid} of {results.n}; not run), by reason:"]
+    for name, count in reasons.items():
+        lines.append(f"    {count:5d}  {name.replace('_', ' ')}: {INVALID_MEANING[name]}")
+    if hits:
+        depth = results.max_penetration[results.invalid_reason > 0]
+        lines += [
+            f"  inside the object: the open hand's palm in {hits['palm']} of them, a finger in "
+            f"{hits['fingers']};",
+            f"  depth median {1e3 * np.median(depth):.1f} mm, max {1e3 * depth.max():.1f} mm "
+            f"(allowed: {1e3 * results.protocol.invalid_penetration:.1f} mm)",
+        ]
+    return lines
+
+
+def _penetration_advice(args: argparse.Namespace, gripper: str) -> list[str]:
+    """What to do when open hands start inside the object (printed after the report)."""
+    from dataset_gen.gripper import PANDA
+
+    palm = 2e3 * PANDA.palm_half_extents[0]
+    lines = ["  what to do (an open hand inside the object cannot reach its grasp):"]
+    if gripper != PANDA.name:
+        lines += [
+            f"  - the file's poses are for the {gripper} hand (see --gripper), moved here to the",
+            f"    simulated Panda hand, whose palm ({palm:.0f} mm wide) and fingers differ: at the",
+            "    same contacts they can hit the object. Grasps made for the Panda avoid this",
+            "    (dg16m generate --gripper panda).",
+        ]
+    if args.mesh is not None:
+        lines += [
+            "  - the hands collide with the mesh's convex parts (CoACD); where the hulls overhang",
+            "    the mesh, a finer --coacd-threshold (e.g. 0.02) gives tighter parts.",
+        ]
+    lines.append(
+        "  - look at one: dg16m sim replay --grasps FILE --index I (--mesh MESH | --procedural "
+        "ID) --out pair.png"
+    )
+    return lines
+
+
+def _force_closure_rates(results: Any, n_passing: int) -> dict[str, dict[str, Any]]:
+    """Pairs, simulated (valid) trials and success rate of the passing rows (the first
+    ``n_passing``) and of the failing rows."""
+    rates = {}
+    n = results.n
+    for name, rows in (("passing", slice(0, n_passing)), ("failing", slice(n_passing, n))):
+        part = results.select(np.arange(n)[rows])
+        valid = int(part.valid.sum())
+        rates[name] = {
+            "pairs": part.n,
+            "valid": valid,
+            "success_rate": float(part.success.sum() / valid) if valid else None,
+        }
+    return rates
+
+
+def _run_payload(file: Path, object_id: str, results: Any, n_passing: int) -> dict[str, Any]:
+    """The JSON report of ``dg16m sim run`` (machine-readable: full precision, NaN as null)."""
+    return {
+        "file": str(file),
+        "object": object_id,
+        "summary": _finite(results.summary()),
+        "invalid_reasons": results.invalid_reasons(),
+        "force_closure": _force_closure_rates(results, n_passing),
+    }
+
+
+def _run(args: argparse.Namespace) -> int:
     from dataset_gen.io import read_dg16m
+    from dg16m_env.benchmark import choose_file_pairs, file_gripper, file_poses
     from dg16m_env.scene import compile_scene
     from dg16m_env.trial import run_trials
 
@@ -399,49 +526,21 @@ def _run(args: argparse.Namespace) -> int:
         raise SimCommandError(f"--limit: expected an integer >= 1, found {args.limit}")
     data = read_dg16m(args.file)
     rng = np.random.default_rng(args.seed)
-    chosen = []
-    for rows in (np.sort(data.passing_indices), np.sort(data.failed_indices)):
-        if args.limit is not None and rows.size > args.limit:
-            rows = np.sort(rng.choice(rows, size=args.limit, replace=False))
-        chosen.append(rows)
-    passing, failing = chosen
+    passing, failing = choose_file_pairs(data, args.limit, args.limit, rng, fill=False)
     rows = np.concatenate([passing, failing])
     if rows.size == 0:
         raise SimCommandError(f"{args.file}: expected passing or failing pairs, found none")
     obj, parts = _grasp_object(args, data.object_scale)
     scene = compile_scene(obj, parts=parts)
-    results = run_trials(
-        scene, _file_poses(data, args, rows), progress=not args.json and sys.stderr.isatty()
-    )
-    groups = {
-        "passing": results.select(np.arange(passing.size)),
-        "failing": results.select(np.arange(passing.size, rows.size)),
-    }
-    rates = {}
-    for name, part in groups.items():
-        valid = int(part.valid.sum())
-        rates[name] = {
-            "pairs": part.n,
-            "valid": valid,
-            "success_rate": float(part.success.sum() / valid) if valid else None,
-        }
-    summary = results.summary()
+    poses = file_poses(data, rows, args.gripper)
+    results = run_trials(scene, poses, progress=not args.json and sys.stderr.isatty())
+    hits = _open_hand_hits(scene, poses, results)
     if args.json:
-        payload = {
-            "file": str(args.file),
-            "object": obj.object_id,
-            "summary": _finite(summary),
-            "force_closure": rates,
-        }
-        print(json.dumps(payload, indent=2, sort_keys=True))
+        payload = _run_payload(args.file, obj.object_id, results, passing.size)
+        print(json.dumps({**payload, "open_hand_inside": hits}, indent=2))
         return 0
-    print(
-        f"{args.file}: {rows.size} pairs on {obj.object_id} ({passing.size} passing, "
-        f"{failing.size} failing force closure)"
-    )
-    for key, value in summary.items():
-        print(f"  {key:22s} {value}")
-    for name, rate in rates.items():
-        shown = "n/a" if rate["success_rate"] is None else f"{rate['success_rate']:.3f}"
-        print(f"  sim success, fc {name}: {shown} ({rate['valid']} valid of {rate['pairs']} pairs)")
+    lines = _sim_run_report(args.file, obj.object_id, results, passing.size, hits)
+    if hits:
+        lines += _penetration_advice(args, file_gripper(data, args.gripper))
+    print("\n".join(lines))
     return 0

@@ -7,7 +7,7 @@ One trial, for one dual grasp (two hand poses in the object frame):
    :attr:`TrialProtocol.invalid_penetration`, or the two hands overlap, the trial is
    ``INVALID`` and is not run (the grasp cannot be reached).
 2. **close** (:attr:`TrialProtocol.close_time` s, gravity off): every finger pushes with the
-   scene's squeeze force (70 N) and the fingers close on the object.
+   scene's squeeze force (``PAPER.f_high``, 70 N) and the fingers close on the object.
 3. **gravity** (:attr:`TrialProtocol.gravity_time` s): the object's weight ``m g`` acts at its
    centre of mass.
 4. **Disturbances**, one after the other, each for :attr:`TrialProtocol.disturbance_time` s on
@@ -22,29 +22,43 @@ each hand's grasp centre (slip relative to the hands) and turns less than
 (and within the same bounds of its initial pose during *close*). The first step outside the
 bounds names the failing phase. A trial whose state turns non-finite or whose object moves faster
 than :attr:`TrialProtocol.max_speed` is ``UNSTABLE`` (never seen with the default settings; it is
-reported, not hidden). Penetration is the deepest object contact while the object is held
+reported, not hidden); :attr:`TrialResults.ejected` tells the second cause from the first.
+Penetration is the deepest object contact while the object is held
 (before it first leaves the bounds; once it slips out, fingers closing on its edges mean nothing).
 
+Slip and rotation are measured by one function, :func:`object_motion`, and judged against the
+bounds by :meth:`TrialProtocol.out_of_bounds`; the step-by-step replay
+(:mod:`dg16m_env.replay`) uses the same two.
+
 Every trial of one object shares one compiled model; trials run in batches through
-``mujoco.rollout`` (single thread per process, so results are bit-for-bit reproducible).
+``mujoco.rollout`` (single thread per process). On one machine results are bit-for-bit
+reproducible (any batch size, worker count or backend); on another CPU MuJoCo's floating-point
+results can differ in the last bits, and after contact chaos by more (see BENCHMARKS.md).
 """
 
 from __future__ import annotations
 
 import enum
 import itertools
-import math
-from collections.abc import Iterator, Sequence
-from dataclasses import asdict, dataclass, field, fields
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import mujoco
 import numpy as np
 from mujoco import rollout
 
+from dataset_gen.checks import check_fields, known_fields
 from dataset_gen.errors import Dg16mError
 from dataset_gen.objects import is_rigid
-from dg16m_env.scene import OBJECT_CONTACTS_SENSOR, Scene
+from dataset_gen.parameters import PAPER
+from dg16m_env.scene import (
+    HAND_NAMES,
+    OBJECT_CONTACTS_SENSOR,
+    Scene,
+    quat_from_matrix,
+    quat_to_matrix,
+)
 
 DIRECTIONS = ("+x", "-x", "+y", "-y", "+z", "-z")
 """Disturbance directions, world axes = the object's initial frame."""
@@ -97,7 +111,7 @@ class TrialProtocol:
     """Timing, loads and success thresholds of a trial (SI units; see the module docstring).
 
     Attributes:
-        gravity: gravitational acceleration (m/s^2; the DG16M release uses 10).
+        gravity: gravitational acceleration (m/s^2; default ``PAPER.gravity``, the release's).
         close_time: duration of the closing phase, gravity off (s).
         gravity_time: duration of the gravity phase (s).
         disturbance_time: duration of each of the 12 disturbances (s).
@@ -114,7 +128,7 @@ class TrialProtocol:
         batch_size: trials per ``mujoco.rollout`` call (memory vs. overhead).
     """
 
-    gravity: float = 10.0
+    gravity: float = PAPER.gravity
     close_time: float = 0.5
     gravity_time: float = 0.4
     disturbance_time: float = 0.2
@@ -128,24 +142,30 @@ class TrialProtocol:
     batch_size: int = 64
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name == "batch_size":
-                if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                    raise TrialError(f"batch_size: expected an integer >= 1, found {value!r}")
-                continue
-            ok = (
-                not isinstance(value, bool)
-                and isinstance(value, (int, float))
-                and math.isfinite(value)
-            )
-            zero_ok = f.name in ("disturbance_force_fraction", "disturbance_torque_arm")
-            if not ok or value < 0 or (value == 0 and not zero_ok):
-                expected = "a finite number >= 0" if zero_ok else "a positive finite number"
-                raise TrialError(f"{f.name}: expected {expected}, found {value!r}")
+        check_fields(
+            self,
+            error=TrialError,
+            integers={"batch_size": 1},
+            zero_allowed=("disturbance_force_fraction", "disturbance_torque_arm"),
+        )
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> TrialProtocol:
+        """The protocol :meth:`to_dict` wrote (missing keys take their defaults).
+
+        Raises:
+            TrialError: ``data`` is not a mapping, has unknown keys or bad values.
+        """
+        return cls(**known_fields(cls, data, what="protocol", error=TrialError))
+
+    def out_of_bounds(self, displacement: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+        """Where the object has left the bounds: slip over :attr:`max_displacement` or rotation
+        over :attr:`max_rotation_deg` (NaN compares as inside; callers treat it as broken)."""
+        with np.errstate(invalid="ignore"):
+            return (displacement > self.max_displacement) | (rotation > self.max_rotation_deg)
 
     def phase_steps(self, timestep: float) -> np.ndarray:
         """(len(PHASES),) number of steps of each phase at ``timestep`` (s)."""
@@ -172,7 +192,11 @@ class TrialResults:
         contacts_after_close: (N, 2) contacts between the object and each hand at the end of
             *close* (int16).
         contacts_final: (N, 2) the same at the end of the trial.
-        ejected: the object left faster than ``max_speed`` or with non-finite state.
+        ejected: the object moved faster than ``max_speed`` (m/s) before the end of the judged
+            window: it was thrown out of the hands (typically by the contact solver pushing out
+            a deep penetration). One of the two causes of ``UNSTABLE``; the other, a state that
+            turns non-finite or stops advancing, leaves it False. Always False for trials that
+            are not ``UNSTABLE``.
         protocol: the protocol used.
     """
 
@@ -256,6 +280,23 @@ class TrialResults:
             **{k: getattr(self, k)[rows] for k in self.ARRAY_FIELDS}, protocol=self.protocol
         )
 
+    def invalid_reasons(self) -> dict[str, int]:
+        """``{reason name: count}`` over the invalid trials, most frequent first."""
+        counts = np.bincount(self.invalid_reason.astype(np.int64), minlength=len(InvalidReason))
+        named = {
+            InvalidReason(k).name.lower(): int(c)
+            for k, c in enumerate(counts)
+            if k != InvalidReason.NONE and c
+        }
+        return dict(sorted(named.items(), key=lambda kv: -kv[1]))
+
+    def __repr__(self) -> str:  # arrays of N rows: counts, not contents
+        s = self.summary()
+        return (
+            f"TrialResults({s['trials']} trials: {s['success']} success, {s['failed']} failed, "
+            f"{s['invalid']} invalid, {s['unstable']} unstable)"
+        )
+
 
 # --------------------------------------------------------------------------------------------
 # Inputs
@@ -284,24 +325,55 @@ def check_dual_grasps(grasps: object) -> np.ndarray:
     return arr
 
 
-def _quats(rotations: np.ndarray) -> np.ndarray:
-    """(..., 4) quaternions (w, x, y, z) of (..., 3, 3) rotations."""
-    flat = rotations.reshape(-1, 3, 3)
-    out = np.empty((len(flat), 4))
-    for i, R in enumerate(flat):
-        mujoco.mju_mat2Quat(out[i], np.ascontiguousarray(R).ravel())
-    return out.reshape(*rotations.shape[:-2], 4)
-
-
 def _place_hands(scene: Scene, data: mujoco.MjData, pose_pair: np.ndarray) -> None:
     data.mocap_pos[scene.hand_mocap] = pose_pair[:, :3, 3]
-    data.mocap_quat[scene.hand_mocap] = _quats(pose_pair[:, :3, :3])
+    data.mocap_quat[scene.hand_mocap] = quat_from_matrix(pose_pair[:, :3, :3])
 
 
 def _initial_data(scene: Scene) -> mujoco.MjData:
     data = mujoco.MjData(scene.model)
     mujoco.mj_resetData(scene.model, data)
     return data
+
+
+HAND_PARTS = ("palm", "finger0", "finger1")
+"""The geoms of a hand, in the order of :attr:`~dg16m_env.scene.Scene.hand_geoms`."""
+
+
+def _open_hand_depths(
+    scene: Scene, data: mujoco.MjData, slot_of_geom: np.ndarray, pose_pair: np.ndarray
+) -> np.ndarray:
+    """(2, 3) deepest penetration (m, >= 0) of each hand's palm and fingers into the object,
+    hands at ``pose_pair`` with open fingers (leaves ``data`` at that configuration)."""
+    _place_hands(scene, data, pose_pair)
+    mujoco.mj_forward(scene.model, data)
+    deepest = np.zeros((2, len(HAND_PARTS)))
+    for c in range(data.ncon):
+        contact = data.contact[c]
+        slot = max(slot_of_geom[contact.geom1], slot_of_geom[contact.geom2])
+        if slot >= 0:
+            hand, part = divmod(int(slot), len(HAND_PARTS))
+            deepest[hand, part] = max(deepest[hand, part], -contact.dist)
+    return deepest
+
+
+def _hand_slots(scene: Scene) -> np.ndarray:
+    """(ngeom,) ``hand * 3 + part`` for each hand geom (part in :data:`HAND_PARTS`), -1 else."""
+    slot_of_geom = np.full(scene.model.ngeom, -1)
+    for hand, geoms in enumerate(scene.hand_geoms):
+        slot_of_geom[geoms] = hand * len(HAND_PARTS) + np.arange(len(geoms))
+    return slot_of_geom
+
+
+def open_hand_penetration(scene: Scene, grasps: np.ndarray) -> np.ndarray:
+    """(N, 2, 3) how deep each hand's palm and two fingers (:data:`HAND_PARTS`) sit in the
+    object when the hands are at their poses with open fingers (m, >= 0): what
+    :func:`check_initial_poses` judges, part by part (to tell a palm that hits the object from
+    fingers that do)."""
+    grasps = check_dual_grasps(grasps)
+    data = _initial_data(scene)
+    slots = _hand_slots(scene)
+    return np.stack([_open_hand_depths(scene, data, slots, pair) for pair in grasps])
 
 
 def check_initial_poses(
@@ -318,19 +390,10 @@ def check_initial_poses(
     n = len(grasps)
     reason = np.zeros(n, dtype=np.int8)
     penetration = np.zeros(n)
-    hand_of_geom = np.full(model.ngeom, -1)
-    for hand, geoms in enumerate(scene.hand_geoms):
-        hand_of_geom[geoms] = hand
+    slots = _hand_slots(scene)
     fromto = np.zeros(6)
     for i in range(n):
-        _place_hands(scene, data, grasps[i])
-        mujoco.mj_forward(model, data)
-        deepest = np.zeros(2)
-        for c in range(data.ncon):
-            contact = data.contact[c]
-            hand = max(hand_of_geom[contact.geom1], hand_of_geom[contact.geom2])
-            if hand >= 0:
-                deepest[hand] = max(deepest[hand], -contact.dist)
+        deepest = _open_hand_depths(scene, data, slots, grasps[i]).max(axis=1)
         penetration[i] = deepest.max()
         if deepest[0] > protocol.invalid_penetration:
             reason[i] = InvalidReason.HAND0_PENETRATES
@@ -439,7 +502,7 @@ def trial_controls(
     mocap_pos = np.zeros((n, scene.model.nmocap, 3))
     mocap_quat = np.zeros((n, scene.model.nmocap, 4))
     mocap_pos[:, scene.hand_mocap] = grasps[:, :, :3, 3]
-    mocap_quat[:, scene.hand_mocap] = _quats(grasps[:, :, :3, :3])
+    mocap_quat[:, scene.hand_mocap] = quat_from_matrix(grasps[:, :, :3, :3])
     controls[:, :, layout["mocap_pos"]] = mocap_pos.reshape(n, 1, -1)
     controls[:, :, layout["mocap_quat"]] = mocap_quat.reshape(n, 1, -1)
     xfrc = layout["xfrc_applied"].reshape(scene.model.nbody, 6)[scene.object_body]
@@ -493,18 +556,43 @@ def rotation_deg(quat: np.ndarray, ref: np.ndarray) -> np.ndarray:
     return np.degrees(2.0 * np.arccos(np.clip(dot, 0.0, 1.0)))
 
 
-def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) rotation matrices of (..., 4) quaternions (w, x, y, z), normalised here."""
-    q = quat / np.linalg.norm(quat, axis=-1, keepdims=True)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        -2,
-    )
+_IDENTITY_QUAT = np.array([1.0, 0.0, 0.0, 0.0])
+
+
+def object_motion(
+    pos: np.ndarray, quat: np.ndarray, anchors: np.ndarray, close: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The protocol's measure of motion: slip at the anchors and rotation of the object.
+
+    The first ``close`` states belong to the *close* phase and are measured from the object's
+    initial pose (at the origin, identity orientation); later states from its pose in state
+    ``close - 1`` (the end of *close*), i.e. relative to where the hands hold it. Slip is the
+    displacement of the material point that sat at an anchor.
+
+    Args:
+        pos: (N, T, 3) object positions, world = initial object frame (m).
+        quat: (N, T, 4) object orientations (w, x, y, z).
+        anchors: (N, K, 3) world points where slip is measured (the hands' grasp centres,
+            :func:`grasp_centres`).
+        close: number of leading states in the *close* phase (>= 1).
+
+    Returns:
+        displacement: (N, T) the largest slip over the K anchors (m).
+        rotation: (N, T) rotation (degrees).
+    """
+    rot = quat_to_matrix(quat)  # (N, T, 3, 3)
+    during = np.einsum("ntij,nkj->ntki", rot[:, :close], anchors) + pos[:, :close, None]
+    rotations = [rotation_deg(quat[:, :close], _IDENTITY_QUAT)]
+    points = [during]
+    if pos.shape[1] > close:  # material points at the anchors at the end of close
+        ref_rot, ref_pos = rot[:, close - 1], pos[:, close - 1]
+        body_points = np.einsum("nji,nkj->nki", ref_rot, anchors - ref_pos[:, None])
+        points.append(
+            np.einsum("ntij,nkj->ntki", rot[:, close:], body_points) + pos[:, close:, None]
+        )
+        rotations.append(rotation_deg(quat[:, close:], quat[:, close - 1 : close]))
+    moved = np.concatenate(points, axis=1) - anchors[:, None]
+    return np.linalg.norm(moved, axis=-1).max(axis=-1), np.concatenate(rotations, axis=1)
 
 
 def grasp_centres(scene: Scene, grasps: np.ndarray) -> np.ndarray:
@@ -515,16 +603,41 @@ def grasp_centres(scene: Scene, grasps: np.ndarray) -> np.ndarray:
 
 
 def sensor_slices(scene: Scene) -> tuple[int, int, np.ndarray]:
+    """Addresses in ``sensordata`` of the object's contact count, its deepest contact distance,
+    and (2,) the contact count with each hand."""
     model = scene.model
     sensor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, OBJECT_CONTACTS_SENSOR)
     start = int(model.sensor_adr[sensor])
     hands = np.array(
         [
             model.sensor_adr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, f"{h}_contacts")]
-            for h in ("hand0", "hand1")
+            for h in HAND_NAMES
         ]
     )
     return start, start + 1, hands
+
+
+def object_states(scene: Scene, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position (..., 3), orientation (..., 4) and linear velocity (..., 3) of the object in
+    full physics states (..., S) (``[time, qpos, qvel, ...]``; addresses from the model)."""
+    q0 = 1 + scene.object_qpos.start
+    v0 = 1 + scene.model.nq + scene.object_qvel.start
+    return states[..., q0 : q0 + 3], states[..., q0 + 3 : q0 + 7], states[..., v0 : v0 + 3]
+
+
+def _broken_steps(
+    scene: Scene, states: np.ndarray, vel: np.ndarray, protocol: TrialProtocol
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(N, T) masks: finite states, broken steps (non-finite, stalled or too fast), too fast."""
+    finite = np.isfinite(states).all(axis=2)
+    # mujoco.rollout stops a trajectory at a simulation warning and repeats its last state (and
+    # mj_step resets diverged data): time that does not advance step by step marks it broken.
+    timestep = scene.model.opt.timestep
+    expected_time = timestep * np.arange(1, states.shape[1] + 1)
+    with np.errstate(invalid="ignore"):
+        stalled = np.abs(states[:, :, 0] - expected_time) > 0.5 * timestep
+        fast = np.linalg.norm(vel, axis=-1) > protocol.max_speed
+    return finite, ~finite | stalled | fast, fast
 
 
 def analyse(
@@ -546,49 +659,21 @@ def analyse(
             centres, :func:`grasp_centres`); default the object's origin.
     """
     n = len(states)
-    results = TrialResults.empty(n, protocol)
-    nq = scene.model.nq
-    q0 = 1 + scene.object_qpos.start  # state = [time, qpos, qvel, ...]
-    pos = states[:, :, q0 : q0 + 3]
-    quat = states[:, :, q0 + 3 : q0 + 7]
-    vel = states[:, :, 1 + nq : 1 + nq + 3]
-    count_at, dist_at, hand_at = sensor_slices(scene)
-
-    close = plan.close_end
     if anchors is None:  # the object's origin
         anchors = np.zeros((n, 1, 3))
-    anchors = np.asarray(anchors, dtype=np.float64)
-    # Material points at the anchors: at the start (close phase) and at the end of close (after).
-    rot = quat_to_matrix(quat)  # (N, T, 3, 3)
-    ref_rot, ref_pos = rot[:, close - 1], pos[:, close - 1]
-    body_points = np.einsum("nji,nkj->nki", ref_rot, anchors - ref_pos[:, None])
-    during = np.einsum("ntij,nkj->ntki", rot[:, :close], anchors) + pos[:, :close, None]
-    after = np.einsum("ntij,nkj->ntki", rot[:, close:], body_points) + pos[:, close:, None]
-    moved = np.concatenate([during, after], axis=1) - anchors[:, None]
-    displacement = np.linalg.norm(moved, axis=-1).max(axis=-1)
-    identity = np.array([1.0, 0.0, 0.0, 0.0])
-    rotation = np.concatenate(
-        [
-            rotation_deg(quat[:, :close], identity),
-            rotation_deg(quat[:, close:], quat[:, close - 1 : close]),
-        ],
-        axis=1,
+    pos, quat, vel = object_states(scene, states)
+    displacement, rotation = object_motion(
+        pos, quat, np.asarray(anchors, dtype=np.float64), plan.close_end
     )
-    finite = np.isfinite(states).all(axis=2)
-    # mujoco.rollout stops a trajectory at a simulation warning and repeats its last state (and
-    # mj_step resets diverged data): time that does not advance step by step marks it broken.
-    timestep = scene.model.opt.timestep
-    expected_time = timestep * np.arange(1, plan.nstep + 1)
-    with np.errstate(invalid="ignore"):
-        stalled = np.abs(states[:, :, 0] - expected_time) > 0.5 * timestep
-        broken = ~finite | stalled | (np.linalg.norm(vel, axis=-1) > protocol.max_speed)
-        out = (displacement > protocol.max_displacement) | (rotation > protocol.max_rotation_deg)
-    out |= broken
+    finite, broken, fast = _broken_steps(scene, states, vel, protocol)
+    out = protocol.out_of_bounds(displacement, rotation) | broken
     steps = plan.nstep
     first_out = np.where(out.any(axis=1), out.argmax(axis=1), steps)
-    phase_end = np.cumsum(np.bincount(plan.phase, minlength=len(PHASES)))
+    count_at, dist_at, hand_at = sensor_slices(scene)
     with np.errstate(invalid="ignore"):
         depth = np.where(sensors[:, :, count_at] > 0, -sensors[:, :, dist_at], 0.0)
+    phase_end = np.cumsum(np.bincount(plan.phase, minlength=len(PHASES)))
+    results = TrialResults.empty(n, protocol)
     for i in range(n):
         failed = first_out[i] < steps
         phase = int(plan.phase[first_out[i]]) if failed else -1
@@ -606,9 +691,9 @@ def analyse(
         results.max_rotation_deg[i] = np.max(np.where(ok, rotation[i, window], np.inf))
         held = slice(0, max(1, int(first_out[i])))  # while the object is held (within bounds)
         results.max_penetration[i] = np.inf if unstable else max(0.0, float(np.max(depth[i, held])))
-        results.contacts_after_close[i] = sensors[i, close - 1, hand_at]
+        results.contacts_after_close[i] = sensors[i, plan.close_end - 1, hand_at]
         results.contacts_final[i] = sensors[i, last - 1, hand_at]
-        results.ejected[i] = unstable
+        results.ejected[i] = bool(fast[i, window].any())
     return results
 
 
@@ -649,7 +734,6 @@ def run_trials(
     if runnable.size == 0:
         return results
     plan = schedule(scene, protocol)
-    start = initial_state(scene)[None]
     data = mujoco.MjData(scene.model)
     batches = list(_batches(runnable, protocol.batch_size))
     iterator: Any = batches
@@ -657,43 +741,56 @@ def run_trials(
         from tqdm import tqdm
 
         iterator = tqdm(batches, unit="batch", desc=f"trials {scene.object_id}")
-    segments = trial_segments(plan)
     for rows in iterator:
-        controls = trial_controls(scene, grasps[rows], plan)
-        anchors = grasp_centres(scene, grasps[rows])
-        states = np.full((len(rows), plan.nstep, start.shape[1]), np.nan)
-        sensors = np.full((len(rows), plan.nstep, scene.model.nsensordata), np.nan)
-        active = np.arange(len(rows))
-        state = np.repeat(start, len(rows), axis=0)
-        for seg in segments:
-            seg_states, seg_sensors = rollout.rollout(
-                scene.model,
-                data,
-                state[active],
-                controls[active, seg],
-                control_spec=CONTROL_SPEC,
-                nstep=seg.stop - seg.start,
-            )
-            states[active, seg] = seg_states
-            sensors[active, seg] = seg_sensors
-            state[active] = seg_states[:, -1]
-            # Trials already out of bounds stop here (their later steps stay NaN, unused).
-            partial = analyse(
-                scene,
-                states[active, : seg.stop],
-                sensors[active, : seg.stop],
-                plan.head(seg.stop),
-                protocol,
-                anchors[active],
-            )
-            active = active[partial.status == TrialStatus.SUCCESS]
-            if active.size == 0:
-                break
-        batch = analyse(scene, states, sensors, plan, protocol, anchors)
+        batch = _run_batch(scene, grasps[rows], plan, protocol, data)
         for name in TrialResults.ARRAY_FIELDS:
             if name != "invalid_reason":
                 getattr(results, name)[rows] = getattr(batch, name)
     return results
+
+
+def _run_batch(
+    scene: Scene,
+    grasps: np.ndarray,
+    plan: Schedule,
+    protocol: TrialProtocol,
+    data: mujoco.MjData,
+) -> TrialResults:
+    """Roll out and judge one batch of valid trials, segment by segment (:func:`trial_segments`);
+    trials already out of bounds after a segment are not run further."""
+    start = initial_state(scene)[None]
+    controls = trial_controls(scene, grasps, plan)
+    anchors = grasp_centres(scene, grasps)
+    n = len(grasps)
+    states = np.full((n, plan.nstep, start.shape[1]), np.nan)
+    sensors = np.full((n, plan.nstep, scene.model.nsensordata), np.nan)
+    active = np.arange(n)
+    state = np.repeat(start, n, axis=0)
+    for seg in trial_segments(plan):
+        seg_states, seg_sensors = rollout.rollout(
+            scene.model,
+            data,
+            state[active],
+            controls[active, seg],
+            control_spec=CONTROL_SPEC,
+            nstep=seg.stop - seg.start,
+        )
+        states[active, seg] = seg_states
+        sensors[active, seg] = seg_sensors
+        state[active] = seg_states[:, -1]
+        # Trials already out of bounds stop here (their later steps stay NaN, unused).
+        partial = analyse(
+            scene,
+            states[active, : seg.stop],
+            sensors[active, : seg.stop],
+            plan.head(seg.stop),
+            protocol,
+            anchors[active],
+        )
+        active = active[partial.status == TrialStatus.SUCCESS]
+        if active.size == 0:
+            break
+    return analyse(scene, states, sensors, plan, protocol, anchors)
 
 
 def trial_segments(plan: Schedule) -> list[slice]:

@@ -17,7 +17,9 @@ from dataset_gen.io import read_manifest
 from dataset_gen.sources import procedural_sources
 from dg16m_env.benchmark import (
     EMBEDDED_BENCHMARK,
+    FLOAT_SIM,
     SOURCES,
+    Benchmark,
     BenchmarkError,
     BenchmarkParameters,
     benchmark_object,
@@ -234,22 +236,72 @@ def test_cli_build_and_info(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert "expected both or neither" in capsys.readouterr().err
 
 
+CROSS_MACHINE_RTOL = 1e-6
+CROSS_MACHINE_ATOL = 1e-9
+"""Tolerance for floats recomputed on another machine than the one that wrote the stored file.
+
+MuJoCo's (and numpy's) floating-point results can differ across CPUs in the last bits (11
+of 100 rows of ``max_rotation_deg`` for table-1000000 differed by 7e-15 on another machine,
+reported in issue 10; on an Intel Xeon all 30,000 shipped rows reproduced bit for bit:
+BENCHMARKS.md, bench/reproduce_benchmark.py).
+For a trial without contact chaos, as the one rebuilt here, such differences stay at rounding
+level, far below 1e-6 relative; labels, statuses, phases, sources and poses must still be exact.
+On the same machine every comparison is exact (see the worker, batch-size and resume tests).
+A chaotic trial can move by up to ~1 mm after a contact event (BENCHMARKS.md): such objects are
+not compared with this tolerance."""
+
+EXACT_ROW_FIELDS = ("poses", "contact_points", "contact_normals", "source", "fc_passed")
+"""Benchmark rows a rebuild must reproduce exactly on any machine: sampling and pairing are
+seeded integer choices, and poses and contacts are stored from the same arithmetic."""
+
+EXACT_TRIAL_FIELDS = (
+    "status",
+    "failing_phase",
+    "invalid_reason",
+    "contacts_after_close",
+    "contacts_final",
+    "ejected",
+)
+"""Trial results compared exactly across machines (labels and their discrete facts)."""
+
+
+def assert_rebuilt(rebuilt: Benchmark, shipped: Benchmark, rows: np.ndarray) -> None:
+    """``rebuilt`` (this machine) reproduces ``shipped`` rows ``rows`` (maybe another machine):
+    discrete fields exactly, floats within the cross-machine tolerance."""
+    for name in EXACT_ROW_FIELDS:
+        np.testing.assert_array_equal(getattr(rebuilt, name), getattr(shipped, name)[rows], name)
+    np.testing.assert_allclose(
+        rebuilt.fc_loss, shipped.fc_loss[rows], rtol=CROSS_MACHINE_RTOL, atol=CROSS_MACHINE_ATOL
+    )
+    assert set(EXACT_TRIAL_FIELDS) | set(FLOAT_SIM) == set(TrialResults.ARRAY_FIELDS)
+    for name in EXACT_TRIAL_FIELDS:
+        np.testing.assert_array_equal(
+            getattr(rebuilt.trials, name), getattr(shipped.trials, name)[rows], name
+        )
+    np.testing.assert_array_equal(rebuilt.labels, shipped.labels[rows])
+    for name in FLOAT_SIM:
+        np.testing.assert_allclose(
+            getattr(rebuilt.trials, name),
+            getattr(shipped.trials, name)[rows],
+            rtol=CROSS_MACHINE_RTOL,
+            atol=CROSS_MACHINE_ATOL,
+            err_msg=name,
+        )
+
+
 @pytest.mark.skipif(not EMBEDDED_BENCHMARK.is_file(), reason="no shipped benchmark file")
 def test_shipped_benchmark_is_reproduced_by_a_rebuild() -> None:
+    """The shipped file was built on another machine: labels, statuses, phases, sources and poses
+    exactly, floats within :data:`CROSS_MACHINE_RTOL` / :data:`CROSS_MACHINE_ATOL`."""
     shipped = read_benchmark(EMBEDDED_BENCHMARK)
     assert len(shipped.objects) == 300
     assert shipped.metadata["parameters"] == json.loads(
         json.dumps(BenchmarkParameters().to_dict())
     ), "the shipped file was built with the default parameters"
+    assert shipped.parameters() == BenchmarkParameters()
     item = procedural_benchmark_sources(1)[0]
     rebuilt = benchmark_object(item, BenchmarkParameters())
-    rows = shipped.object_rows(item.object_id)
-    for name in ("poses", "contact_points", "contact_normals", "source", "fc_passed", "fc_loss"):
-        np.testing.assert_array_equal(getattr(rebuilt, name), getattr(shipped, name)[rows])
-    for name in TrialResults.ARRAY_FIELDS:
-        np.testing.assert_array_equal(
-            getattr(rebuilt.trials, name), getattr(shipped.trials, name)[rows]
-        )
+    assert_rebuilt(rebuilt, shipped, shipped.object_rows(item.object_id))
     summary = shipped.summary()
     assert summary["sim_success_rate_fc_passing"] > 2 * summary["sim_success_rate_random"]
     assert summary["trials"]["unstable"] == 0
@@ -259,3 +311,112 @@ def test_shipped_benchmark_is_reproduced_by_a_rebuild() -> None:
     depth = shipped.trials.max_penetration[shipped.trials.valid]
     assert np.mean(depth > 1e-3) < 1e-3
     assert depth.max() < 5e-3
+
+
+# --------------------------------------------------------------------------------------------
+# One source of parameters, one constructor from metadata, one pair chooser
+# --------------------------------------------------------------------------------------------
+
+
+def test_defaults_are_the_papers() -> None:
+    from dataset_gen.parameters import PAPER
+    from dg16m_env.gsr import GraspJob
+    from dg16m_env.scene import SceneParameters
+    from dg16m_env.trial import TrialProtocol
+
+    params = BenchmarkParameters()
+    assert (params.mu, params.mass, params.f_high, params.threshold) == (
+        PAPER.mu,
+        PAPER.mass,
+        PAPER.f_high,
+        PAPER.threshold,
+    )
+    assert params.min_center_distance == PAPER.min_center_distance
+    assert SceneParameters().friction == params.scene.friction == PAPER.mu
+    assert SceneParameters().squeeze_force == PAPER.f_high
+    assert TrialProtocol().gravity == PAPER.gravity
+    assert GraspJob.__dataclass_fields__["mass"].default == PAPER.mass
+
+
+def test_parameters_round_trip_through_metadata() -> None:
+    params = BenchmarkParameters(seed=3, n_grasps=50, mu=0.5)
+    stored = json.loads(json.dumps(params.to_dict()))  # what a file holds
+    assert BenchmarkParameters.from_dict(stored) == params
+    assert BenchmarkParameters.from_dict({}) == BenchmarkParameters()
+    with pytest.raises(BenchmarkError, match=r"found unknown \['nope'\]"):
+        BenchmarkParameters.from_dict({**stored, "nope": 1})
+    with pytest.raises(BenchmarkError, match="scene parameters: expected keys among"):
+        BenchmarkParameters.from_dict({**stored, "scene": {**stored["scene"], "frictoin": 1}})
+    with pytest.raises(BenchmarkError, match="protocol: expected keys among"):
+        BenchmarkParameters.from_dict({"protocol": {"gravity_s": 1.0}})
+    with pytest.raises(BenchmarkError, match="timestep: expected a positive finite number"):
+        BenchmarkParameters.from_dict({"scene": {"timestep": -1}})
+
+
+def test_benchmark_parameters_come_from_its_metadata(built: Path) -> None:
+    bench = read_benchmark(built / "benchmark.h5")
+    assert bench.parameters() == SMALL
+    assert bench.trials.protocol == SMALL.protocol
+
+
+def _grasp_set(n_pass: int, n_fail: int):
+    from dataset_gen.io import DualGraspSet
+
+    n = n_pass + n_fail
+    return DualGraspSet(
+        grasps=np.tile(np.eye(4), (n, 2, 1, 1)),
+        contact_points=np.zeros((n, 4, 3)),
+        contact_forces=np.zeros((n, 4, 3)),
+        loss_values=np.r_[np.zeros(n_pass), np.ones(n_fail)],
+        passing_indices=np.arange(n_pass),
+        failed_indices=np.arange(n_pass, n),
+        object_file="x.obj",
+        object_scale=1.0,
+    )
+
+
+def test_choose_file_pairs() -> None:
+    from dg16m_env.benchmark import choose_file_pairs
+
+    data = _grasp_set(3, 20)
+    # The benchmark's rule: a passing shortfall is filled with failing pairs.
+    take_pass, take_fail = choose_file_pairs(data, 5, 4, np.random.default_rng(0))
+    assert take_pass.tolist() == [0, 1, 2]
+    assert take_fail.size == 6
+    assert (np.diff(take_fail) > 0).all()
+    assert set(take_fail.tolist()) <= set(range(3, 23))
+    # `sim run --limit K`: at most K of each, no filling; None takes all.
+    take_pass, take_fail = choose_file_pairs(data, 5, 4, np.random.default_rng(0), fill=False)
+    assert (take_pass.size, take_fail.size) == (3, 4)
+    take_pass, take_fail = choose_file_pairs(data, None, None, np.random.default_rng(0))
+    assert (take_pass.size, take_fail.size) == (3, 20)
+    # Seeded: the same stream gives the same pairs.
+    again = choose_file_pairs(data, 2, 4, np.random.default_rng(7))
+    np.testing.assert_array_equal(
+        again[1], choose_file_pairs(data, 2, 4, np.random.default_rng(7))[1]
+    )
+
+
+def test_records_print_short(built: Path) -> None:
+    bench = read_benchmark(built / "benchmark.h5")
+    for thing in (bench, bench.objects[0], bench.trials):
+        text = repr(thing)
+        assert len(text) < 200, text
+        assert "array(" not in text
+    assert repr(bench.objects[0]).startswith(f"BenchmarkObject({bench.objects[0].object_id!r}")
+    assert f"{bench.n} dual grasps" in repr(bench)
+
+
+def test_summary_plot_does_not_touch_the_matplotlib_backend(
+    built: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import matplotlib
+
+    from dg16m_env.benchmark_report import plot_summary
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("library code called matplotlib.use")
+
+    monkeypatch.setattr(matplotlib, "use", refuse)
+    plot_summary(read_benchmark(built / "benchmark.h5"), tmp_path / "s.png")
+    assert (tmp_path / "s.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

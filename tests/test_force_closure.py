@@ -8,6 +8,7 @@ import pytest
 from dataset_gen.errors import ForceClosureError, SolverError
 from dataset_gen.force_closure import (
     SOLVED_CLARABEL,
+    SOLVED_CLARABEL_TIGHT,
     SOLVED_FAST,
     SOLVED_NONE,
     axis_gravity_wrenches,
@@ -19,9 +20,30 @@ from dataset_gen.force_closure import (
     project_cone_ball,
 )
 from dataset_gen.force_closure.synthetic import FAMILIES, family_pairs
+from dataset_gen.parameters import PAPER
 
 METHODS = ["fast", "clarabel"]
 UP = np.array([0.0, 0.0, 60.0])
+
+
+def mixed_pairs(per_family: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """``per_family`` pairs of every synthetic family, concatenated."""
+    rng = np.random.default_rng(seed)
+    parts = [family_pairs(family, per_family, rng) for family in FAMILIES]
+    return np.concatenate([p for p, _ in parts]), np.concatenate([n for _, n in parts])
+
+
+def pinch_path(steps: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """``steps`` pairs on the straight path from a passing box pinch to a failing one: their
+    losses run continuously from 0 to far above the threshold."""
+    points, normals = family_pairs("box", 200, np.random.default_rng(seed))
+    result = evaluate(points, normals, loss_rtol=None)
+    good = int(np.flatnonzero(result.passed)[0])
+    bad = int(np.flatnonzero(result.rank_ok & (result.loss_lower[:, 0] > 1.0))[0])
+    t = np.linspace(0.0, 1.0, steps)[:, None, None]
+    p = (1 - t) * points[good] + t * points[bad]
+    n = (1 - t) * normals[good] + t * normals[bad]
+    return p, n / np.linalg.norm(n, axis=-1, keepdims=True)
 
 
 def plank_squeeze() -> tuple[np.ndarray, np.ndarray]:
@@ -154,10 +176,7 @@ def test_projection_onto_cone_and_ball() -> None:
 
 @pytest.mark.parametrize("convention", ["physical", "release"])
 def test_fast_and_clarabel_agree_on_random_pairs(convention: str) -> None:
-    rng = np.random.default_rng(2024)
-    parts = [family_pairs(family, 500, rng) for family in FAMILIES]
-    points = np.concatenate([p for p, _ in parts])
-    normals = np.concatenate([n for _, n in parts])
+    points, normals = mixed_pairs(500, 2024)
     fast = evaluate(points, normals, convention=convention, method="fast")
     reference = evaluate(points, normals, convention=convention, method="clarabel")
     assert 0.05 < fast.passed.mean() < 0.95  # a mix of outcomes, not a trivial set
@@ -248,7 +267,7 @@ def test_bad_input_gives_clear_errors(points: object, normals: object, match: st
     ("kwargs", "match"),
     [
         ({"mu": -0.1}, "mu: expected a finite number >= 0"),
-        ({"f_high": 0.0}, "f_high: expected a finite number > 0"),
+        ({"f_high": 0.0}, "f_high: expected a positive finite number, found 0.0"),
         ({"threshold": float("nan")}, "threshold"),
         ({"convention": "outward"}, "convention: expected one of"),
         ({"method": "cvxpy"}, "method: expected one of"),
@@ -271,6 +290,7 @@ def test_failed_clarabel_solve_raises(monkeypatch: pytest.MonkeyPatch) -> None:
         status = clarabel.SolverStatus.MaxIterations
         iterations = 200
         x = [0.0] * 13
+        z = [0.0] * 35
 
     class FakeSolver:
         def __init__(self, *args: object) -> None:
@@ -283,6 +303,13 @@ def test_failed_clarabel_solve_raises(monkeypatch: pytest.MonkeyPatch) -> None:
     points, normals = plank_squeeze()
     with pytest.raises(SolverError, match="expected status Solved or AlmostSolved, found"):
         evaluate(points, normals, method="clarabel")
+    # A tight re-solve only sharpens a solve that succeeded: its failures are no error, and the
+    # bounds it returns (zero forces: loss 60) are still valid.
+    axes, wrench = -normals, PAPER.gravity_wrench()[None]
+    batch = clarabel_solver.solve_batch(points, axes, wrench, mu=0.4, f_high=70.0, tight=True)
+    assert batch.statuses[0].startswith("unconverged: ")
+    assert batch.losses[0] == pytest.approx(60.0)
+    assert batch.lower[0] <= 60.0
 
 
 def test_solved_by_reports_the_fallback() -> None:
@@ -299,11 +326,109 @@ def test_solved_by_reports_the_fallback() -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("convention", ["physical", "release"])
 def test_fast_matches_clarabel_on_many_pairs(convention: str) -> None:
-    rng = np.random.default_rng(99)
-    parts = [family_pairs(family, 5000, rng) for family in FAMILIES]
-    points = np.concatenate([p for p, _ in parts])
-    normals = np.concatenate([n for _, n in parts])
+    points, normals = mixed_pairs(5000, 99)
     quick = evaluate(points, normals, convention=convention, loss_rtol=None)
     reference = evaluate(points, normals, convention=convention, method="clarabel")
     assert np.array_equal(quick.passed, reference.passed)
     assert quick.fallback_fraction < 0.02
+    assert quick.verdict_proven.all()
+
+
+def test_defaults_are_the_papers_parameters() -> None:
+    import inspect
+
+    defaults = inspect.signature(evaluate).parameters
+    for name in ("mass", "gravity", "mu", "f_high", "threshold"):
+        assert defaults[name].default == getattr(PAPER, name)
+    points, normals = plank_squeeze()
+    result = evaluate(points, normals)
+    for name in ("mass", "gravity", "mu", "f_high", "threshold"):
+        assert result.parameters[name] == getattr(PAPER, name)
+    assert np.array_equal(result.wrenches[0], PAPER.gravity_wrench())
+
+
+@pytest.mark.parametrize("convention", ["physical", "release"])
+def test_lower_bounds_are_proven_by_every_method(convention: str) -> None:
+    """A lower bound from one solver never exceeds a loss attained by the other (L lies between)."""
+    points, normals = mixed_pairs(300, 17)
+    fast = evaluate(points, normals, convention=convention, method="fast", loss_rtol=None)
+    clarabel = evaluate(points, normals, convention=convention, method="clarabel")
+    solved = clarabel.rank_ok
+    for a, b in ((fast, clarabel), (clarabel, fast)):
+        assert np.all(np.isfinite(a.loss_lower[solved]))
+        assert np.all(a.loss_lower[solved] >= 0.0)
+        assert np.all(a.loss_lower[solved] <= b.losses[solved] * (1 + 1e-9) + 1e-12)
+        assert np.all(np.isnan(a.loss_lower[~solved]))
+    # Clarabel's dual bound is close to its attained loss: measured within 1.3e-6 relative.
+    failing = solved & ~clarabel.passed
+    gap = clarabel.losses[failing, 0] - clarabel.loss_lower[failing, 0]
+    assert np.all(gap <= 1e-5 * clarabel.losses[failing, 0] + 1e-7)
+    # Every verdict here is proven; failures by a lower bound above the threshold.
+    for result in (fast, clarabel):
+        assert result.verdict_proven.all()
+        fails = result.rank_ok & ~result.passed
+        assert np.all(result.pair_loss_lower[fails] > PAPER.threshold)
+        assert np.all(result.pair_loss_lower[~result.rank_ok] == 0.0)
+
+
+def test_straddling_bounds_are_solved_again_tightly(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With loose first solves, pairs whose bounds straddle the threshold are re-solved at tight
+    tolerances: verdicts then match default-tolerance solves wherever those are proven."""
+    from dataset_gen.force_closure import clarabel_solver
+
+    points, normals = pinch_path(400, 4)
+    reference = evaluate(points, normals, method="clarabel")
+    near = np.abs(reference.loss / PAPER.threshold - 1.0) < 1.0
+    assert near.sum() >= 3  # the path crosses the threshold with a few pairs close to it
+    loose = {"tol_gap_abs": 1e-4, "tol_gap_rel": 1e-4, "tol_feas": 1e-4}
+    retries = tuple({**loose, **changes} for changes in clarabel_solver.RETRY_SETTINGS)
+    monkeypatch.setattr(clarabel_solver, "RETRY_SETTINGS", retries)
+    loose_batch = clarabel_solver.solve_batch(
+        points, -normals, np.tile(PAPER.gravity_wrench(), (len(points), 1)), mu=0.4, f_high=70.0
+    )
+    straddled = (loose_batch.losses > PAPER.threshold) & ~(loose_batch.lower > PAPER.threshold)
+    assert straddled.any()
+    result = evaluate(points, normals, method="clarabel")
+    tight = result.solved_by[:, 0] == SOLVED_CLARABEL_TIGHT
+    assert np.array_equal(tight, straddled)
+    assert result.fallback_fraction == 1.0
+    proven = result.verdict_proven & reference.verdict_proven
+    assert proven.mean() > 0.95
+    assert np.array_equal(result.passed[proven], reference.passed[proven])
+    # A tight re-solve never makes a bound worse than the loose solve's.
+    assert np.all(result.losses[tight, 0] <= loose_batch.losses[tight] * (1 + 1e-12))
+    assert np.all(result.loss_lower[tight, 0] >= loose_batch.lower[tight] - 1e-15)
+
+
+def test_settings_reproduce_a_result() -> None:
+    points, normals = mixed_pairs(50, 8)
+    first = evaluate(points, normals, convention="release", wrenches="axis_gravity", mu=0.5)
+    again = evaluate(points[:20], normals[:20], **first.settings())
+    assert again.parameters == {**first.parameters, "method": again.parameters["method"]}
+    assert np.array_equal(again.passed, first.passed[:20])
+    assert np.array_equal(again.wrenches, first.wrenches)
+
+
+def test_numpy_scalars_are_accepted_and_bools_rejected() -> None:
+    points, normals = plank_squeeze()
+    result = evaluate(points, normals, mu=np.float32(0.4), max_iterations=np.int64(50))
+    assert result.passed[0]
+    with pytest.raises(ForceClosureError, match="mass: expected a positive finite number"):
+        evaluate(points, normals, mass=True)
+    with pytest.raises(ForceClosureError, match="chunk_size: expected an integer >= 1, found 0"):
+        evaluate(points, normals, chunk_size=0)
+
+
+def test_best_of_keeps_the_lower_loss_and_the_higher_bound() -> None:
+    from dataset_gen.force_closure.clarabel_solver import ClarabelBatch, best_of
+
+    forces = np.arange(3 * 12, dtype=float).reshape(3, 4, 3)
+    first = ClarabelBatch(forces, np.array([2.0, 1.0, 1.0]), np.array([0.5, 0.9, 0.9]), ["a"] * 3)
+    second = ClarabelBatch(
+        -forces, np.array([1.0, 2.0, np.nan]), np.array([0.7, np.nan, 0.2]), ["b"] * 3
+    )
+    best = best_of(first, second)
+    assert best.losses.tolist() == [1.0, 1.0, 1.0]
+    assert best.lower.tolist() == [0.7, 0.9, 0.9]
+    assert np.array_equal(best.forces, np.stack([-forces[0], forces[1], forces[2]]))
+    assert best.statuses == ["b"] * 3

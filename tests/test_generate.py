@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -21,6 +22,7 @@ from dataset_gen.generate import (
     generate_object,
 )
 from dataset_gen.io import read_dg16m, read_manifest
+from dataset_gen.parameters import PAPER
 from dataset_gen.procedural import make_procedural_object
 from dataset_gen.sources import mesh_sources, object_seed, procedural_sources
 
@@ -146,6 +148,7 @@ def test_cli_generate_and_stats(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert code == 0
     text = capsys.readouterr().out
     assert "passing_pairs" in text
+    assert not re.search(r"\d\.\d{7,}", text)  # rates printed for people, not 17 digits
     for name in ("quality_hist.png", "passes_per_object.png", "loss_hist.png", "stats.json"):
         assert (tmp_path / "stats" / name).stat().st_size > 0
 
@@ -154,6 +157,87 @@ def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert main(["generate", "--meshes", str(tmp_path / "none"), "--out", str(tmp_path)]) == 2
     assert "expected a folder of mesh files" in capsys.readouterr().err
     assert main(["generate", "--procedural", "2", "--out", str(tmp_path), "--workers", "0"]) == 2
+
+
+def test_parameters_default_to_the_paper_and_are_checked() -> None:
+    params = GenerationParameters()
+    for name in (
+        "n_grasps",
+        "mu",
+        "mass",
+        "gravity",
+        "f_high",
+        "threshold",
+        "min_center_distance",
+        "max_passing",
+        "max_failing",
+        "failing_min_loss",
+    ):
+        assert getattr(params, name) == getattr(PAPER, name), name
+    for kwargs, message in [
+        ({"n_grasps": 1}, "n_grasps: expected an integer >= 2, found 1"),
+        ({"max_passing": -1}, "max_passing: expected an integer >= 0, found -1"),
+        ({"seed": 1.5}, "seed: expected an integer >= 0, found 1.5"),
+        ({"mass": -6.0}, "mass: expected a positive finite number, found -6.0"),
+        ({"mu": float("nan")}, "mu: expected a positive finite number, found nan"),
+        ({"min_center_distance": -0.1}, "min_center_distance: expected a finite number >= 0"),
+        ({"convention": "outward"}, "convention: expected one of ('physical', 'release')"),
+        ({"check_gripper_collision": 1}, "check_gripper_collision: expected True or False"),
+    ]:
+        with pytest.raises(GenerationError, match=re.escape(message)):
+            GenerationParameters(**kwargs)
+    assert GenerationParameters(min_center_distance=0.0, failing_min_loss=0.0).n_grasps == 500
+
+
+def test_generate_help_defaults_come_from_the_paper(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["generate", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert f"single-arm grasps per object (default: {PAPER.n_grasps})" in out
+    assert f"passing pairs kept per object (default: {PAPER.max_passing})" in out
+    assert f"keep up to {PAPER.max_passing} passing and {PAPER.max_failing} failing pairs" in out
+
+
+def test_generate_exits_1_and_names_every_failed_object(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A broken mesh, an 80 mm box written in millimetres (80 m: refused with the scale to use)
+    and an object too small for two hands (no pairs) each fail; the run goes on and exits 1."""
+    import trimesh
+
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    make_procedural_object("ladder", 1).mesh.export(meshes / "ladder.obj")
+    (meshes / "broken.obj").write_text("v 0 0 0\nv 1 0 0\nf 1 2 7\n")
+    trimesh.creation.box(extents=(80.0, 50.0, 30.0)).export(meshes / "box_mm.obj")
+    out = tmp_path / "out"
+    argv = ["generate", "--meshes", str(meshes), "--out", str(out), "--no-progress"]
+    small = ["--grasps", "60", "--max-passing", "50", "--max-failing", "50"]
+    assert main(argv + small) == 1
+    text = capsys.readouterr().out
+    assert "1 objects ok, 2 failed" in text
+    assert "failed box_mm: " in text
+    assert "longest side 80 m: expected 0.05-5 m for a dual-arm object" in text
+    assert "a file in millimetres needs --scale 0.001" in text
+    assert "failed broken: " in text
+    entries = read_manifest(out)["entries"]
+    assert entries["box_mm"]["status"] == "failed"
+
+    # The same box at its true size is accepted with the override but holds no dual grasp.
+    tiny = tmp_path / "tiny"
+    tiny.mkdir()
+    trimesh.creation.box(extents=(0.08, 0.05, 0.03)).export(tiny / "box.obj")
+    out = tmp_path / "tiny_out"
+    argv = ["generate", "--meshes", str(tiny), "--out", str(out), "--no-progress"]
+    assert main([*argv, *small, "--allow-any-size"]) == 1
+    text = capsys.readouterr().out
+    assert "0 objects ok, 1 failed" in text
+    assert "failed box: no dual grasps:" in text
+    entry = read_manifest(out)["entries"]["box"]
+    assert entry["status"] == "failed"
+    assert entry["error"].startswith("no dual grasps:")
+    assert entry["counts"]["pairs_remaining"] == 0
+    assert not (out / "grasps" / "box.h5").exists()
 
 
 @pytest.mark.slow

@@ -262,7 +262,7 @@ def test_failed_write_keeps_old_file_and_leaves_no_temp(
             raise RuntimeError("disk full (simulated)")
         original(*args, **kwargs)
 
-    monkeypatch.setattr(dio, "write_array", failing)
+    monkeypatch.setattr(dio.dg16m, "write_array", failing)  # the name write_dg16m calls
     with pytest.raises(RuntimeError, match="simulated"):
         write_dg16m(path, make_set(seed=1))
     assert path.read_bytes() == before
@@ -709,3 +709,29 @@ def test_detect_format(tmp_path: Path, real_data: Path) -> None:
         handle.create_dataset("points", data=np.zeros(3))
     with pytest.raises(GraspFileError, match=r"found top-level keys \['points'\]"):
         dio.detect_format(other)
+
+
+# --------------------------------------------------------------------------------------------
+# Package layout: one module per format behind the names of the former single module
+# --------------------------------------------------------------------------------------------
+
+
+def test_package_reexports_every_public_name() -> None:
+    import importlib
+
+    for name in dio.__all__:
+        assert hasattr(dio, name), name
+    # each format's module owns its names; the package hands out the very same objects
+    owners = {
+        "dg16m": ("DualGraspSet", "read_dg16m", "write_dg16m", "RELEASE_KEYS", "EXTRAS_GROUP"),
+        "acronym": ("AcronymGrasps", "read_acronym", "acronym_to_dg16m", "ACRONYM_TO_DG16M"),
+        "manifest": ("read_manifest", "write_manifest", "MANIFEST_NAME", "MANIFEST_KINDS"),
+        "versions": ("package_version", "SCHEMA_VERSION", "SUPPORTED_MANIFEST_VERSIONS"),
+        "detect": ("detect_format",),
+        "_hdf5": ("write_array", "CHUNK_BYTES"),
+        "_checks": ("RIGID_ATOL",),
+    }
+    for module, names in owners.items():
+        mod = importlib.import_module(f"dataset_gen.io.{module}")
+        for name in names:
+            assert getattr(dio, name) is getattr(mod, name), (module, name)

@@ -129,12 +129,78 @@ def test_broken_mesh_corpus_gives_clear_errors(tmp_path: Path, name: str) -> Non
 def test_absurd_and_tiny_extents_are_rejected_with_a_hint(tmp_path: Path) -> None:
     path = tmp_path / "big.obj"
     trimesh.creation.box(extents=(720.0, 340.0, 600.0)).export(path)
-    with pytest.raises(MeshError, match=r"at most 100 m, found 720 m.*scale=0.001"):
+    with pytest.raises(MeshError, match=r"longest side 720 m: .*needs --scale 0\.001"):
         load_object(path)
+    with pytest.raises(MeshError, match=r"at most 100 m, found 720 m.*scale=0.001"):
+        load_object(path, allow_any_size=True)  # the hard limits hold even with the override
     obj = load_object(path, scale=0.001)
     assert obj.extents.max() == pytest.approx(0.72)
     with pytest.raises(MeshError, match=r"at least 0\.001 m"):
-        load_object(path, scale=1e-9)
+        load_object(path, scale=1e-9, allow_any_size=True)
+
+
+def test_a_box_in_millimetres_is_not_an_80_m_object(tmp_path: Path) -> None:
+    """An 80 mm box exported in millimetres reads as 80 m: refused, with the scale to use."""
+    path = tmp_path / "box_mm.obj"
+    trimesh.creation.box(extents=(80.0, 50.0, 30.0)).export(path)
+    with pytest.raises(MeshError) as info:
+        load_object(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: longest side 80 m: expected 0.05-5 m for a dual-arm")
+    assert "a file in millimetres needs --scale 0.001 (0.08 m)" in message
+    assert "--allow-any-size" in message
+    assert load_object(path, scale=0.001).extents.max() == pytest.approx(0.08)
+    assert load_object(path, allow_any_size=True).extents.max() == pytest.approx(80.0)
+
+
+@pytest.mark.parametrize(
+    ("extents", "scale", "hint"),
+    [
+        ((0.8, 0.5, 0.3), 0.001, "seems to be in metres already, so --scale 0.001 looks wrong"),
+        ((8.0, 5.0, 3.0), None, "a file in centimetres needs --scale 0.01"),
+        ((0.02, 0.01, 0.01), None, "pass --scale or --target-extent"),
+        ((1e5, 1.0, 1.0), None, "pass --scale or --target-extent"),
+    ],
+)
+def test_implausible_sizes_suggest_a_scale(
+    tmp_path: Path, extents: tuple[float, ...], scale: float | None, hint: str
+) -> None:
+    path = tmp_path / "mesh.obj"
+    trimesh.creation.box(extents=extents).export(path)
+    with pytest.raises(MeshError, match=r"expected 0\.05-5 m for a dual-arm object") as info:
+        load_object(path, scale=scale)
+    assert hint in str(info.value)
+
+
+def test_dual_arm_range_constants_match_the_messages() -> None:
+    from dataset_gen.objects import DUAL_ARM_MAX_EXTENT_M, DUAL_ARM_MIN_EXTENT_M
+
+    assert (DUAL_ARM_MIN_EXTENT_M, DUAL_ARM_MAX_EXTENT_M) == (0.05, 5.0)
+
+
+def test_target_extent_outside_the_dual_arm_range_needs_the_override(tmp_path: Path) -> None:
+    path = tmp_path / "box.obj"
+    _box().export(path)
+    with pytest.raises(MeshError, match="choose a --target-extent in that range"):
+        load_object(path, target_extent=10.0)
+    assert load_object(path, target_extent=10.0, allow_any_size=True).extents.max() == (
+        pytest.approx(10.0)
+    )
+
+
+@pytest.mark.real_data
+def test_the_shared_real_meshes_pass_the_size_check(real_data: Path) -> None:
+    """The release airplane (0.72 m) and the ACRONYM mug (0.10 m) and table (0.20 m) at their
+    files' scales are all within the dual-arm range: the check keeps the real data working."""
+    from dataset_gen import io
+
+    sizes = {"dg16m_airplane": load_object(real_data / "dg16m_airplane.obj").extents.max()}
+    for name in ("acronym_mug_10f6e090", "acronym_table_99cf659a"):
+        scale = io.read_acronym(real_data / f"{name}.h5").object_scale
+        sizes[name] = load_object(real_data / f"{name}.obj", scale=scale).extents.max()
+    assert sizes["dg16m_airplane"] == pytest.approx(0.72, abs=0.01)
+    assert sizes["acronym_mug_10f6e090"] == pytest.approx(0.101, abs=0.002)
+    assert sizes["acronym_table_99cf659a"] == pytest.approx(0.199, abs=0.002)
 
 
 def test_target_extent_and_scale_are_exclusive(tmp_path: Path) -> None:

@@ -374,6 +374,54 @@ def test_selection_caps_proof_and_determinism(table_grasps: SingleArmGrasps) -> 
     assert everything.counts["selected_failing"] == exact.counts["failing_over_min_loss"]
 
 
+def test_selection_parameters_are_checked(table_grasps: SingleArmGrasps) -> None:
+    pairs = np.array([[0, 1], [0, 2]])
+    fc = score_pairs(table_grasps, pairs)
+    points, normals = dual_contacts(table_grasps, pairs)
+    rng = np.random.default_rng(0)
+    for kwargs, message in (
+        ({"max_passing": -1}, "max_passing: expected an integer >= 0, found -1"),
+        ({"max_failing": True}, "max_failing: expected an integer >= 0, found True"),
+        ({"max_failing": 2.0}, "max_failing: expected an integer >= 0, found 2.0"),
+        ({"failing_min_loss": float("inf")}, "failing_min_loss: expected a finite number >= 0"),
+        ({"failing_min_loss": True}, "failing_min_loss: expected a finite number >= 0"),
+        ({"loss_rtol": "1e-4"}, "loss_rtol: expected a finite number >= 0, found '1e-4'"),
+    ):
+        with pytest.raises(PairingError, match=message):
+            select_pairs(fc, points, normals, rng=rng, **kwargs)  # type: ignore[arg-type]
+    # numpy scalars are numbers like any other
+    sel = select_pairs(
+        fc,
+        points,
+        normals,
+        rng=rng,
+        max_passing=np.int64(1),
+        max_failing=np.int32(1),
+        failing_min_loss=np.float32(0.5),
+    )
+    assert sel.counts["selected_passing"] <= 1
+    assert sel.counts["selected_failing"] <= 1
+
+
+def test_defaults_are_the_papers() -> None:
+    import inspect
+
+    from dataset_gen import pairing
+    from dataset_gen.parameters import PAPER
+
+    assert pairing.DEFAULT_MIN_CENTER_DISTANCE == PAPER.min_center_distance == 0.1
+    assert pairing.DEFAULT_MAX_PASSING == PAPER.max_passing == 2000
+    assert pairing.DEFAULT_MAX_FAILING == PAPER.max_failing == 2000
+    assert pairing.DEFAULT_FAILING_MIN_LOSS == PAPER.failing_min_loss == 0.5
+    selection = inspect.signature(select_pairs).parameters
+    assert selection["max_passing"].default == PAPER.max_passing
+    assert selection["failing_min_loss"].default == PAPER.failing_min_loss
+    assert (
+        inspect.signature(candidate_pairs).parameters["min_center_distance"].default
+        == PAPER.min_center_distance
+    )
+
+
 def test_selection_rejects_mismatched_contacts(table_grasps: SingleArmGrasps) -> None:
     pairs = np.array([[0, 1], [0, 2]])
     fc = score_pairs(table_grasps, pairs)

@@ -4,8 +4,12 @@ frames are pictures of the requested size, strips and GIFs are written, the CLI 
 from __future__ import annotations
 
 import argparse
+import json
+import re
+import shutil
 from pathlib import Path
 
+import h5py
 import mujoco
 import numpy as np
 import pytest
@@ -33,7 +37,7 @@ from dg16m_env.replay import (
     write_gif,
     write_strip,
 )
-from dg16m_env.scene import Scene, SceneParameters, compile_scene
+from dg16m_env.scene import Scene, compile_scene
 from dg16m_env.sim_command import register
 from dg16m_env.trial import TrialStatus, run_trials, simulate
 
@@ -52,12 +56,8 @@ def bench(bench_path: Path) -> Benchmark:
 
 @pytest.fixture(scope="module")
 def scene(bench: Benchmark) -> Scene:
-    stored = bench.metadata["parameters"]["scene"]
-    params = SceneParameters(
-        **{k: tuple(v) if isinstance(v, list) else v for k, v in stored.items()}
-    )
     item = bench.objects[0]
-    return compile_scene(item.load(), params=params, parts=item.parts)
+    return compile_scene(item.load(), params=bench.parameters().scene, parts=item.parts)
 
 
 @pytest.fixture(scope="module")
@@ -107,6 +107,16 @@ def test_stepping_equals_one_continuous_rollout(scene: Scene, bench: Benchmark) 
     assert np.nanmax(stepped.slip[: stepped.end + 1]) == pytest.approx(
         stepped.results.max_displacement[0]
     )
+
+
+def test_stepped_trial_and_replay_print_short(scene: Scene, bench: Benchmark) -> None:
+    row = _ran_row(bench)
+    stepped = step_trial(scene, bench.poses[row], bench.trials.protocol)
+    text = repr(stepped)
+    assert text.startswith(f"SteppedTrial({stepped.plan.nstep} steps: ")
+    assert len(text) < 200
+    assert repr(scene).startswith(f"Scene({scene.object_id!r}, mass ")
+    assert len(repr(scene)) < 200
 
 
 def test_frame_steps_include_key_steps(scene: Scene, bench: Benchmark) -> None:
@@ -170,7 +180,13 @@ def test_invalid_grasp_gives_one_frame(can_render: None, scene: Scene, bench: Be
     assert "invalid" in captions[0]
 
 
-def test_strip_and_gif_are_written(tmp_path: Path) -> None:
+def test_strip_and_gif_are_written(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import matplotlib
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("library code called matplotlib.use")
+
+    monkeypatch.setattr(matplotlib, "use", refuse)  # figures are built on Figure, no pyplot
     rng = np.random.default_rng(0)
     frames = [rng.integers(0, 255, (48, 64, 3), dtype=np.uint8) for _ in range(6)]
     captions = [f"t={i / 10:.2f} s  close  slip 0.0 mm" for i in range(6)]
@@ -193,10 +209,10 @@ def test_strip_and_gif_are_written(tmp_path: Path) -> None:
 
 
 @pytest.fixture
-def with_sim(monkeypatch: pytest.MonkeyPatch) -> None:
-    modules = dataset_gen.cli.COMMAND_MODULES
-    if "dg16m_env.sim_command" not in modules:
-        monkeypatch.setattr(dataset_gen.cli, "COMMAND_MODULES", (*modules, "dg16m_env.sim_command"))
+def with_sim() -> None:
+    """``dg16m sim`` comes from dg16m_env's entry point (the package must be installed)."""
+    values = [plugin.value for plugin in dataset_gen.cli.command_plugins()]
+    assert "dg16m_env.sim_command:register" in values, values
 
 
 @pytest.mark.parametrize("argv", [["sim"], ["sim", "replay"], ["sim", "run"]])
@@ -331,3 +347,81 @@ def test_cli_run_reports_passing_and_failing(
     )
     assert set(payload["force_closure"]) == {"passing", "failing"}
     assert dataset_gen.cli.main([*argv[:5], "--limit", "0"]) == 2
+
+
+@pytest.fixture(scope="module")
+def penetrating_file(
+    grasp_file: tuple[Path, str], tmp_path_factory: pytest.TempPathFactory
+) -> tuple[Path, str]:
+    """The generated file with hand 0 of every passing pair moved 4 cm along its closing axis:
+    one open finger then lies inside the object."""
+    path, object_id = grasp_file
+    out = tmp_path_factory.mktemp("penetrating") / path.name
+    shutil.copyfile(path, out)
+    with h5py.File(out, "r+") as f:
+        poses = f["grasps/grasps"][()]
+        passing = np.sort(f["grasps/fc_passing_indices"][()])
+        poses[passing, 0, :3, 3] += 0.04 * poses[passing, 0, :3, 0]
+        f["grasps/grasps"][...] = poses
+    return out, object_id
+
+
+def test_cli_run_says_why_trials_are_invalid_and_what_to_do(
+    with_sim: None, penetrating_file: tuple[Path, str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    path, object_id = penetrating_file
+    argv = ["sim", "run", str(path), "--procedural", object_id, "--limit", "3"]
+    assert dataset_gen.cli.main(argv) == 0
+    out = capsys.readouterr().out
+    match = re.search(r"invalid trials \((\d+) of (\d+); not run\), by reason:", out)
+    assert match, out
+    invalid = int(match.group(1))
+    assert invalid >= 1  # moved passing pairs
+    counts = [int(m) for m in re.findall(r"^ +(\d+)  hand[01] penetrates: ", out, re.MULTILINE)]
+    assert sum(counts) == invalid, out
+    assert "inside the object: the open hand's palm in " in out
+    assert "what to do" in out
+    assert "dg16m sim replay --grasps" in out
+    assert "--coacd-threshold" not in out  # a procedural object has exact parts
+    # Numbers for people: no raw dicts, no 17-digit floats.
+    assert "{" not in out
+    assert not re.search(r"\d\.\d{5,}", out), out
+
+    assert dataset_gen.cli.main([*argv, "--json"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert sum(payload["invalid_reasons"].values()) == payload["summary"]["invalid"] == invalid
+    assert payload["invalid_reasons"]["hand0_penetrates"] >= 1
+    assert payload["open_hand_inside"]["fingers"] >= 1
+
+
+def test_cli_run_coacd_threshold_is_for_meshes_only(
+    with_sim: None, grasp_file: tuple[Path, str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    path, object_id = grasp_file
+    argv = ["sim", "run", str(path), "--procedural", object_id, "--coacd-threshold", "0.02"]
+    assert dataset_gen.cli.main(argv) == 2
+    assert "--coacd-threshold: expected only with --mesh" in capsys.readouterr().err
+
+
+REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
+
+
+@pytest.mark.slow
+@pytest.mark.real_data
+@pytest.mark.skipif(not (REAL / "dg16m_airplane.h5").is_file(), reason="no ../shared/data/real")
+def test_cli_run_on_the_release_airplane_explains_the_invalid_trials(
+    with_sim: None, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The new user's case: the release's airplane (CoACD parts: ~50 s the first time, then
+    cached) marks most trials invalid; the report says why (the open Panda hand, mostly its
+    palm, sits inside the object: the poses were made for the Robotiq 2F-85)."""
+    argv = ["sim", "run", str(REAL / "dg16m_airplane.h5"), "--mesh"]
+    argv += [str(REAL / "dg16m_airplane.obj"), "--limit", "50"]
+    assert dataset_gen.cli.main(argv) == 0
+    out = capsys.readouterr().out
+    match = re.search(r"invalid trials \((\d+) of 100; not run\)", out)
+    assert match, out
+    assert int(match.group(1)) > 50, out
+    assert "hand0 penetrates" in out
+    assert "poses are for the robotiq_2f85 hand" in out
+    assert "--coacd-threshold" in out

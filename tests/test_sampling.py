@@ -210,6 +210,8 @@ def test_other_gripper(ladder: GraspObject) -> None:
     [
         ({"n_grasps": 0}, SamplingError, "n_grasps: expected an integer >= 1, found 0"),
         ({"n_grasps": 2.5}, SamplingError, "n_grasps: expected an integer >= 1"),
+        ({"n_grasps": True}, SamplingError, "n_grasps: expected an integer >= 1, found True"),
+        ({"batch_size": np.int64(0)}, SamplingError, "batch_size: expected an integer >= 1"),
         ({"n_approach": 0}, SamplingError, "n_approach: expected"),
         ({"mu": -0.1}, SamplingError, "mu: expected a finite friction coefficient >= 0"),
         ({"mu": float("nan")}, SamplingError, "mu: expected"),
@@ -229,6 +231,23 @@ def test_bad_input(
     with pytest.raises(error, match=message) as info:
         sample_antipodal_grasps(ladder, **args)  # type: ignore[arg-type]
     assert isinstance(info.value, Dg16mError)
+
+
+def test_defaults_are_the_papers() -> None:
+    import inspect
+
+    from dataset_gen.parameters import PAPER
+
+    defaults = inspect.signature(sample_antipodal_grasps).parameters
+    assert defaults["n_grasps"].default == PAPER.n_grasps == 500
+    assert defaults["mu"].default == PAPER.mu
+
+
+def test_numpy_counts_are_accepted(ladder: GraspObject) -> None:
+    grasps = sample_antipodal_grasps(
+        ladder, n_grasps=np.int64(3), batch_size=np.int32(256), rng=np.random.default_rng(0)
+    )
+    assert grasps.n <= 3
 
 
 def test_bad_object() -> None:

@@ -294,7 +294,31 @@ def test_a_stalled_trajectory_is_unstable_not_a_success(short_scene: Scene) -> N
     frozen[:, plan.nstep // 2 :] = frozen[:, plan.nstep // 2 - 1 : plan.nstep // 2]
     judged = analyse(short_scene, frozen, sensors, plan, protocol, anchors)
     assert judged.status[0] == TrialStatus.UNSTABLE
+    assert not judged.ejected[0], "a stalled state is unstable, not an ejection"
+
+
+def test_an_object_thrown_faster_than_max_speed_is_ejected(short_scene: Scene) -> None:
+    """``ejected`` is its own measure: the object's speed (read at the free joint's dof address)
+    over ``max_speed``; such a trial is also UNSTABLE."""
+    grasps = HOLD_FROM_ABOVE[None]
+    protocol = TrialProtocol()
+    states, sensors, plan = simulate(short_scene, grasps, protocol)
+    anchors = grasp_centres(short_scene, grasps)
+    model = short_scene.model
+    joint = model.body_jntadr[short_scene.object_body]
+    vel = 1 + model.nq + model.jnt_dofadr[joint]  # state = [time, qpos, qvel, ...]
+    assert short_scene.object_qvel == slice(model.jnt_dofadr[joint], model.jnt_dofadr[joint] + 6)
+    thrown = states.copy()
+    step = plan.close_end + 10
+    thrown[0, step, vel : vel + 3] = (0.0, 2.0 * protocol.max_speed, 0.0)
+    judged = analyse(short_scene, thrown, sensors, plan, protocol, anchors)
+    assert judged.status[0] == TrialStatus.UNSTABLE
     assert judged.ejected[0]
+    assert judged.phase_name(0) == PHASES[plan.phase[step]]
+    # The object's angular velocity is not its speed: spinning fast is not an ejection.
+    spun = states.copy()
+    spun[0, step, vel + 3 : vel + 6] = (0.0, 0.0, 2.0 * protocol.max_speed)
+    assert not analyse(short_scene, spun, sensors, plan, protocol, anchors).ejected[0]
 
 
 # --------------------------------------------------------------------------------------------
@@ -714,3 +738,64 @@ def test_procedural_benchmark_object_runs_without_instability() -> None:
     failed = results.status == TrialStatus.FAILED
     assert (results.failing_phase[failed] >= 0).all()
     assert (results.failing_phase[~failed] == -1).all()
+
+
+# --------------------------------------------------------------------------------------------
+# One conversion, one constructor from stored parameters, readable records
+# --------------------------------------------------------------------------------------------
+
+
+def test_quaternions_round_trip_through_the_one_conversion() -> None:
+    from scipy.spatial.transform import Rotation
+
+    from dg16m_env.scene import quat_from_matrix, quat_to_matrix
+
+    rotations = Rotation.random(12, random_state=0).as_matrix().reshape(3, 4, 3, 3)
+    quats = quat_from_matrix(rotations)
+    assert quats.shape == (3, 4, 4)
+    np.testing.assert_allclose(np.linalg.norm(quats, axis=-1), 1.0, atol=1e-12)
+    np.testing.assert_allclose(quat_to_matrix(quats), rotations, atol=1e-12)
+
+
+def test_scene_parameters_and_protocol_from_stored_dicts() -> None:
+    params = SceneParameters(timestep=0.004, solimp=(0.9, 0.95, 0.002))
+    stored = params.to_dict()
+    assert isinstance(stored["solimp"], list)
+    assert SceneParameters.from_dict(stored) == params
+    with pytest.raises(SceneError, match=r"found unknown \['fricton'\]"):
+        SceneParameters.from_dict({"fricton": 0.5})
+    with pytest.raises(SceneError, match="expected a mapping"):
+        SceneParameters.from_dict([("timestep", 0.004)])  # type: ignore[arg-type]
+    protocol = TrialProtocol(batch_size=8, max_rotation_deg=5.0)
+    assert TrialProtocol.from_dict(protocol.to_dict()) == protocol
+    with pytest.raises(TrialError, match="expected keys among"):
+        TrialProtocol.from_dict({"max_rotation": 5.0})
+
+
+def test_results_print_short_and_count_invalid_reasons(short_scene: Scene) -> None:
+    good0, good1 = HOLD_FROM_ABOVE
+    grasps = np.stack(
+        [dual(_finger_inside(good0), good1), dual(good0, good0), dual(good0, _finger_inside(good1))]
+    )
+    results = run_trials(short_scene, grasps)
+    assert results.invalid_reasons() == {
+        "hand0_penetrates": 1,
+        "hand1_penetrates": 1,
+        "hands_overlap": 1,
+    }
+    text = repr(results)
+    assert text == "TrialResults(3 trials: 0 success, 0 failed, 3 invalid, 0 unstable)"
+
+
+def test_open_hand_penetration_names_the_part(short_scene: Scene) -> None:
+    from dg16m_env.trial import HAND_PARTS, open_hand_penetration
+
+    good0, good1 = HOLD_FROM_ABOVE
+    depth = open_hand_penetration(
+        short_scene, np.stack([dual(_finger_inside(good0), good1), HOLD_FROM_ABOVE])
+    )
+    assert depth.shape == (2, 2, len(HAND_PARTS))
+    inside = depth > TrialProtocol().invalid_penetration
+    # Moved along +x (its closing axis), hand 0's finger 1 lies in the plank; nothing else does.
+    assert inside[0].tolist() == [[False, False, True], [False, False, False]]
+    assert not inside[1].any()

@@ -7,6 +7,7 @@ fixture and skips when ``../shared`` is absent.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -93,24 +94,8 @@ def _box_file(
 
 
 def _tamper(path: Path, **changes: object) -> None:
-    data = io.read_dg16m(path)
-    fields = {
-        name: getattr(data, name)
-        for name in (
-            "grasps",
-            "contact_points",
-            "contact_forces",
-            "loss_values",
-            "passing_indices",
-            "failed_indices",
-            "object_file",
-            "object_scale",
-            "extras",
-            "metadata",
-        )
-    }
-    fields.update(changes)
-    io.write_dg16m(path, io.DualGraspSet(**fields))
+    """Rewrite the file at ``path`` with some of its DualGraspSet fields replaced."""
+    io.write_dg16m(path, dataclasses.replace(io.read_dg16m(path), **changes))
 
 
 # --------------------------------------------------------------------------------------------

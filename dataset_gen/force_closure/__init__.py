@@ -1,19 +1,16 @@
 """Force closure for four-contact dual-arm grasps: the paper's SOCP, exact and fast.
 
 ``evaluate(contact_points, contact_normals, ...)`` is the entry point; see
-:mod:`dataset_gen.force_closure.core` for the conventions and a worked example.
+:mod:`dataset_gen.force_closure.core` for the conventions and a worked example. Its defaults are
+the paper's parameters, :data:`dataset_gen.parameters.PAPER`.
 """
 
 from .core import (
     CERTIFICATE_MARGIN,
     CONVENTIONS,
-    DEFAULT_F_HIGH,
-    DEFAULT_GRAVITY,
-    DEFAULT_MASS,
-    DEFAULT_MU,
-    DEFAULT_THRESHOLD,
     METHODS,
     SOLVED_CLARABEL,
+    SOLVED_CLARABEL_TIGHT,
     SOLVED_FAST,
     SOLVED_NONE,
     ForceClosureResult,
@@ -26,13 +23,9 @@ from .geometry import contact_frames, full_rank, grasp_matrix, grasp_quality, pr
 __all__ = [
     "CERTIFICATE_MARGIN",
     "CONVENTIONS",
-    "DEFAULT_F_HIGH",
-    "DEFAULT_GRAVITY",
-    "DEFAULT_MASS",
-    "DEFAULT_MU",
-    "DEFAULT_THRESHOLD",
     "METHODS",
     "SOLVED_CLARABEL",
+    "SOLVED_CLARABEL_TIGHT",
     "SOLVED_FAST",
     "SOLVED_NONE",
     "ForceClosureResult",

@@ -93,6 +93,16 @@ def _apply_gt(P, i, y, out):
 
 
 @njit(cache=True, inline="always")
+def _split(vx, vy, vz, ax, ay, az):
+    """Split ``v`` along a unit cone axis ``a``: ``(v.a, t = v - (v.a) a, ||t||)``."""
+    vn = vx * ax + vy * ay + vz * az
+    tx = vx - vn * ax
+    ty = vy - vn * ay
+    tz = vz - vn * az
+    return vn, tx, ty, tz, math.sqrt(tx * tx + ty * ty + tz * tz)
+
+
+@njit(cache=True, inline="always")
 def _project(F, A, i, mu, c, s, f_high):
     """Project each 3-block of F onto (cone about A[i, k]) ∩ (ball f_high), in place."""
     for k in range(4):
@@ -102,11 +112,7 @@ def _project(F, A, i, mu, c, s, f_high):
         fx = F[3 * k]
         fy = F[3 * k + 1]
         fz = F[3 * k + 2]
-        an = fx * ax + fy * ay + fz * az
-        tx = fx - an * ax
-        ty = fy - an * ay
-        tz = fz - an * az
-        tn = math.sqrt(tx * tx + ty * ty + tz * tz)
+        an, tx, ty, tz, tn = _split(fx, fy, fz, ax, ay, az)
         if tn <= mu * an:
             pass
         elif mu * tn <= -an:
@@ -153,7 +159,8 @@ def _momentum(x, xn, y, t):
 
 @njit(cache=True, inline="always")
 def _dual_bound(P, A, i, w, y, mu, c, s, f_high):
-    """Lower bound on L from a direction y (normalised here): ``y.w - f_high sum ||P_K(-G_k^T y)||``."""
+    """Lower bound on L from a direction y (normalised here):
+    ``y.w - f_high sum_k ||P_K(-G_k^T y)||``."""
     norm = _norm6(y)
     if norm == 0.0:
         return -np.inf
@@ -169,14 +176,7 @@ def _dual_bound(P, A, i, w, y, mu, c, s, f_high):
         dx = -(y[0] + y[4] * pz - y[5] * py)
         dy = -(y[1] + y[5] * px - y[3] * pz)
         dz = -(y[2] + y[3] * py - y[4] * px)
-        ax = A[i, k, 0]
-        ay = A[i, k, 1]
-        az = A[i, k, 2]
-        dn = dx * ax + dy * ay + dz * az
-        tx = dx - dn * ax
-        ty = dy - dn * ay
-        tz = dz - dn * az
-        tn = math.sqrt(tx * tx + ty * ty + tz * tz)
+        dn, _, _, _, tn = _split(dx, dy, dz, A[i, k, 0], A[i, k, 1], A[i, k, 2])
         if tn <= mu * dn:
             total += math.sqrt(dx * dx + dy * dy + dz * dz)
         elif mu * tn <= -dn:
@@ -305,6 +305,157 @@ def _largest_eigenvalue(H):
     return min(lam * 1.02, trace)
 
 
+# The steps of :func:`solve_batch` allocate nothing, so they are compiled without numba's
+# reference counting (``_nrt=False``): a call then passes its work arrays without the atomic
+# reference-count updates that made the same steps 7-10 % slower as ``inline="always"`` helpers
+# and about 18 % slower as ordinary calls than one monolithic loop. Measured on the kernel alone
+# (40,000 synthetic pairs, one core): this version is 11 % (verdicts) and 20 % (exact losses)
+# faster than that loop, with bit-identical outputs.
+
+
+@njit(cache=True, _nrt=False)
+def _prepare(P, i, H, L, M, v):
+    """``H = G G^T`` plus a tiny ridge and ``M = H^-1`` for pair i; False when not invertible.
+
+    The ridge keeps near-collinear pairs (rank 6 but badly conditioned) invertible:
+    ``G^T (H + eps I)^-1 G`` has eigenvalues below 1, so the unit step stays valid, and the
+    certificates are computed on the true loss, so they stay exact.
+    """
+    _gram(P, i, H)
+    ridge = 1e-12 * (H[0, 0] + H[1, 1] + H[2, 2] + H[3, 3] + H[4, 4] + H[5, 5])
+    for a in range(6):
+        H[a, a] += ridge
+    return _cholesky_inverse(H, L, M, v)
+
+
+@njit(cache=True, _nrt=False)
+def _start(P, A, i, w, M, squeeze, mu, c, s, f_high, x, y, g, z):
+    """``x = y`` = the minimum-norm solution of ``G F = -w`` plus ``squeeze`` along each cone
+    axis, projected onto C."""
+    _matvec6(M, w, z)
+    _apply_gt(P, i, z, g)
+    for k in range(4):
+        for a in range(3):
+            x[3 * k + a] = -g[3 * k + a] + squeeze * A[i, k, a]
+    _project(x, A, i, mu, c, s, f_high)
+    for a in range(12):
+        y[a] = x[a]
+
+
+@njit(cache=True, _nrt=False)
+def _certify(
+    P,
+    A,
+    i,
+    w,
+    M,
+    mu,
+    c,
+    s,
+    f_high,
+    thr_pass,
+    thr_fail,
+    max_iterations,
+    check_every,
+    x,
+    xn,
+    y,
+    g,
+    r,
+    z,
+):
+    """Phase 1 from ``x = y``: preconditioned FISTA until a certificate either way.
+
+    Returns ``(verdict, ub, lb, iterations)``: ``ub`` the residual attained by ``x`` at the last
+    check, ``lb`` the best dual bound found.
+    """
+    t = 1.0
+    best_lb = -np.inf
+    ub = np.inf
+    verdict = UNDECIDED
+    it = 0
+    while it < max_iterations:
+        it += 1
+        _apply_g(P, i, y, w, r)
+        _matvec6(M, r, z)
+        _apply_gt(P, i, z, g)
+        for a in range(12):
+            xn[a] = y[a] - g[a]
+        _project(xn, A, i, mu, c, s, f_high)
+        t = _momentum(x, xn, y, t)
+        if it % check_every == 0 or it == 1:
+            _apply_g(P, i, x, w, r)
+            ub = _norm6(r)
+            if ub <= thr_pass:
+                verdict = CERTIFIED_PASS
+                break
+            lb = _dual_bound(P, A, i, w, r, mu, c, s, f_high)
+            if lb > best_lb:
+                best_lb = lb
+            _matvec6(M, r, z)
+            lb = _dual_bound(P, A, i, w, z, mu, c, s, f_high)
+            if lb > best_lb:
+                best_lb = lb
+            if best_lb > thr_fail:
+                verdict = CERTIFIED_FAIL
+                break
+    return verdict, ub, best_lb, it
+
+
+@njit(cache=True, _nrt=False)
+def _refine(
+    P,
+    A,
+    i,
+    w,
+    step,
+    mu,
+    c,
+    s,
+    f_high,
+    loss_rtol,
+    loss_atol,
+    max_refine,
+    check_every,
+    ub,
+    lb,
+    x,
+    xn,
+    y,
+    g,
+    r,
+    best,
+):
+    """Phase 2 from ``x``: FISTA on the plain objective until the bounds meet the accuracy.
+
+    Returns ``(ub, lb, iterations)``; ``best`` holds the forces attaining ``ub``.
+    """
+    for a in range(12):
+        best[a] = x[a]
+        y[a] = x[a]
+    t = 1.0
+    refine = 0
+    while ub - lb > loss_rtol * ub + loss_atol and refine < max_refine:
+        refine += 1
+        _apply_g(P, i, y, w, r)
+        _apply_gt(P, i, r, g)
+        for a in range(12):
+            xn[a] = y[a] - step * g[a]
+        _project(xn, A, i, mu, c, s, f_high)
+        t = _momentum(x, xn, y, t)
+        if refine % check_every == 0:
+            _apply_g(P, i, x, w, r)
+            value = _norm6(r)
+            if value < ub:
+                ub = value
+                for a in range(12):
+                    best[a] = x[a]
+            bound = _dual_bound(P, A, i, w, r, mu, c, s, f_high)
+            if bound > lb:
+                lb = bound
+    return ub, lb, refine
+
+
 @njit(cache=True)
 def solve_batch(
     P,
@@ -333,7 +484,6 @@ def solve_batch(
         forces: out ``(N, K, 12)``; losses, lower: out ``(N, K)``; status: out ``(N, K)`` int8
         (0 undecided, 1 certified pass, 2 certified fail); iterations: out ``(N, K)`` int32.
     """
-    n = P.shape[0]
     n_w = W.shape[0]
     c = 1.0 / math.sqrt(1.0 + mu * mu)
     s = mu * c
@@ -348,103 +498,52 @@ def solve_batch(
     best = np.zeros(12)
     r = np.zeros(6)
     z = np.zeros(6)
-    for i in range(n):
-        _gram(P, i, H)
-        # A tiny ridge keeps near-collinear pairs (rank 6 but badly conditioned) invertible:
-        # G^T (H + eps I)^-1 G has eigenvalues below 1, so the unit step stays valid, and the
-        # certificates are computed on the true loss, so they stay exact.
-        ridge = 1e-12 * (H[0, 0] + H[1, 1] + H[2, 2] + H[3, 3] + H[4, 4] + H[5, 5])
-        for a in range(6):
-            H[a, a] += ridge
-        if not _cholesky_inverse(H, L, M, v):
+    for i in range(P.shape[0]):
+        if not _prepare(P, i, H, L, M, v):
             for j in range(n_w):
                 status[i, j] = UNDECIDED
                 losses[i, j] = np.nan
                 lower[i, j] = -np.inf
             continue
-        lam = -1.0  # computed on first need (phase 2)
+        lam = -1.0  # lambda_max(H), computed on first need (phase 2)
         for j in range(n_w):
             w = W[j]
-            # start: the minimum-norm solution of G F = -w, projected onto C
-            _matvec6(M, w, z)
-            _apply_gt(P, i, z, g)
-            for k in range(4):
-                for a in range(3):
-                    x[3 * k + a] = -g[3 * k + a] + squeeze * A[i, k, a]
-            _project(x, A, i, mu, c, s, f_high)
-            for a in range(12):
-                y[a] = x[a]
-            t = 1.0
-            best_lb = -np.inf
-            ub = np.inf
-            verdict = UNDECIDED
-            it = 0
-            while it < max_iterations:
-                it += 1
-                _apply_g(P, i, y, w, r)
-                _matvec6(M, r, z)
-                _apply_gt(P, i, z, g)
-                for a in range(12):
-                    xn[a] = y[a] - g[a]
-                _project(xn, A, i, mu, c, s, f_high)
-                t = _momentum(x, xn, y, t)
-                if it % check_every == 0 or it == 1:
-                    _apply_g(P, i, x, w, r)
-                    ub = _norm6(r)
-                    if ub <= thr_pass:
-                        verdict = CERTIFIED_PASS
-                        break
-                    lb = _dual_bound(P, A, i, w, r, mu, c, s, f_high)
-                    if lb > best_lb:
-                        best_lb = lb
-                    _matvec6(M, r, z)
-                    lb = _dual_bound(P, A, i, w, z, mu, c, s, f_high)
-                    if lb > best_lb:
-                        best_lb = lb
-                    if best_lb > thr_fail:
-                        verdict = CERTIFIED_FAIL
-                        break
+            _start(P, A, i, w, M, squeeze, mu, c, s, f_high, x, y, g, z)
+            verdict, ub, lb, it = _certify(
+                P, A, i, w, M, mu, c, s, f_high, thr_pass, thr_fail, max_iterations,
+                check_every, x, xn, y, g, r, z,
+            )  # fmt: skip
             status[i, j] = verdict
+            iterations[i, j] = it
             if verdict != CERTIFIED_FAIL:
                 for a in range(12):
                     forces[i, j, a] = x[a]
                 losses[i, j] = ub
-                lower[i, j] = max(best_lb, 0.0) if verdict == UNDECIDED else 0.0
-                iterations[i, j] = it
+                lower[i, j] = max(lb, 0.0) if verdict == UNDECIDED else 0.0
                 continue
-            # phase 2: tighten the loss of a certified failure on the plain objective
-            for a in range(12):
-                best[a] = x[a]
-                y[a] = x[a]
-            best_ub = ub
-            t = 1.0
             if lam < 0.0 and max_refine > 0:
                 lam = _largest_eigenvalue(H)
             step = 1.0 / lam if lam > 0.0 else 0.0
-            refine = 0
-            while best_ub - best_lb > loss_rtol * best_ub + loss_atol and refine < max_refine:
-                refine += 1
-                _apply_g(P, i, y, w, r)
-                _apply_gt(P, i, r, g)
-                for a in range(12):
-                    xn[a] = y[a] - step * g[a]
-                _project(xn, A, i, mu, c, s, f_high)
-                t = _momentum(x, xn, y, t)
-                if refine % check_every == 0:
-                    _apply_g(P, i, x, w, r)
-                    value = _norm6(r)
-                    if value < best_ub:
-                        best_ub = value
-                        for a in range(12):
-                            best[a] = x[a]
-                    lb = _dual_bound(P, A, i, w, r, mu, c, s, f_high)
-                    if lb > best_lb:
-                        best_lb = lb
+            ub, lb, refine = _refine(
+                P, A, i, w, step, mu, c, s, f_high, loss_rtol, loss_atol, max_refine,
+                check_every, ub, lb, x, xn, y, g, r, best,
+            )  # fmt: skip
             for a in range(12):
                 forces[i, j, a] = best[a]
-            losses[i, j] = best_ub
-            lower[i, j] = best_lb
-            iterations[i, j] = it + refine
+            losses[i, j] = ub
+            lower[i, j] = lb
+            iterations[i, j] += refine
+
+
+@njit(cache=True)
+def dual_bounds(P, A, W, Y, mu, f_high, out):
+    """``out[i]`` = the dual lower bound on problem i's loss from direction ``Y[i]`` (any
+    non-zero 6-vector; -inf for a zero one): ``L_i >= y.w_i - f_high sum_k ||P_K(-G_k^T y)||``
+    with ``y = Y[i] / ||Y[i]||``. Valid for any direction, tight at the optimal one."""
+    c = 1.0 / math.sqrt(1.0 + mu * mu)
+    s = mu * c
+    for i in range(P.shape[0]):
+        out[i] = _dual_bound(P, A, i, W[i], Y[i], mu, c, s, f_high)
 
 
 def run(

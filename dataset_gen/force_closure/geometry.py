@@ -3,9 +3,9 @@
 The paper's grasp matrix stacks, per contact k, ``G_k = [R_k; [p_k]x R_k]`` (6x3), where ``R_k`` is
 a contact frame whose z-axis is the friction cone's axis and ``p_k`` the contact point in the object
 frame. Forces are solved in the object frame: with ``F_k = R_k f_k`` the wrench is
-``sum_k [F_k; p_k x F_k]``, so ``G G^T`` (and hence rank, singular values and Q(G)) does not depend
-on the choice of tangent axes in ``R_k``. We still build ``R_k`` deterministically (the released code
-draws them from ``np.random``) so that :func:`grasp_matrix` is reproducible.
+``sum_k [F_k; p_k x F_k]``, so ``G G^T`` (and hence rank, singular values and Q(G)) does not
+depend on the choice of tangent axes in ``R_k``. We still build ``R_k`` deterministically (the
+released code draws them from ``np.random``) so that :func:`grasp_matrix` is reproducible.
 """
 
 from __future__ import annotations
