@@ -65,11 +65,16 @@ def format_summary(bench: Benchmark) -> str:
         [
             f"{s['objects']} objects, {s['pairs']} dual grasps",
             *trial_lines(s["trials"]),
-            "sim success, force-closure passing pairs: "
+            "sim success by pair source (simulated trials):",
+            *(
+                f"  {name:8s} {percent(row['sim_success_rate']):>7s} of {row['valid']} "
+                f"({row['pairs']} pairs, {percent(row['fc_pass_fraction'])} pass force closure)"
+                for name, row in s["by_source"].items()
+            ),
+            "sim success, all force-closure passing pairs (any source): "
             + percent(s["sim_success_rate_fc_passing"]),
-            "sim success, force-closure failing pairs: "
+            "sim success, all force-closure failing pairs (any source): "
             + percent(s["sim_success_rate_fc_failing"]),
-            "sim success, random pairs:                " + percent(s["sim_success_rate_random"]),
         ]
     )
 
