@@ -4,8 +4,8 @@ Per object (:func:`generate_object`): antipodal single-arm sampling, all unique 
 grasp-centre pruning and gripper-gripper collision rejection, force closure on every candidate
 (verdict-only), then up to ``max_passing`` passing and ``max_failing`` failing pairs (failing
 losses proven > ``failing_min_loss`` and computed exactly). The defaults are the release's
-(:data:`~dataset_gen.parameters.PAPER`). The result is a :class:`~dataset_gen.io.DualGraspSet` in the release schema
-with our extras under ``dg16m/``.
+(:data:`~dataset_gen.parameters.PAPER`). The result is a :class:`~dataset_gen.io.DualGraspSet` in
+the release schema with our extras under ``dg16m/``.
 
 A dataset run (:func:`generate_dataset`) maps that task over objects with a local process pool or
 Ray. Every object's random stream is derived from ``(seed, object id)`` alone, so the bytes of
@@ -31,16 +31,24 @@ import numpy as np
 from .atomic import write_bytes_atomic
 from .checks import check_fields
 from .errors import Dg16mError
+from .force_closure import ForceClosureResult
 from .io import (
     DualGraspSet,
     package_version,
     write_dg16m,
 )
 from .objects import GraspObject
-from .pairing import candidate_pairs, dual_contacts, dual_poses, score_pairs, select_pairs
+from .pairing import (
+    PairCandidates,
+    candidate_pairs,
+    dual_contacts,
+    dual_poses,
+    score_pairs,
+    select_pairs,
+)
 from .parallel import Backend, run_resumable
 from .parameters import PAPER
-from .sampling import sample_antipodal_grasps
+from .sampling import SingleArmGrasps, sample_antipodal_grasps
 from .sources import ObjectSource, object_seed
 
 GRASPS_FOLDER = "grasps"
@@ -193,9 +201,9 @@ def generate_object(
 def _select_and_assemble(
     obj: GraspObject,
     params: GenerationParameters,
-    grasps: Any,
-    candidates: Any,
-    result: Any,
+    grasps: SingleArmGrasps,
+    candidates: PairCandidates,
+    result: ForceClosureResult,
     rng: np.random.Generator,
     object_file: str,
 ) -> DualGraspSet:

@@ -17,12 +17,11 @@ from pathlib import Path
 import matplotlib
 import numpy as np
 import trimesh
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 from mpl_toolkits.mplot3d.axes3d import Axes3D
 
-from dataset_gen.atomic import atomic_path
+from dataset_gen.figures import new_figure, save_png
 from dataset_gen.gripper import GripperModel, get_gripper, transform_points
 
 MAX_DRAWN_FACES = 40_000
@@ -120,7 +119,7 @@ def render_dual_grasps(
     passed = np.asarray(passed, dtype=bool)
     pick_pass, pick_fail = select_pairs(passed, n, seed)
     skeleton = model.skeleton().reshape(-1, 3)
-    fig = _new_figure(13, 6.5)
+    fig = new_figure(13, 6.5)
     panels = [
         (pick_pass, "Greens", f"force closure: pass ({len(pick_pass)} of {int(passed.sum())})"),
         (pick_fail, "Reds", f"force closure: fail ({len(pick_fail)} of {int((~passed).sum())})"),
@@ -137,7 +136,7 @@ def render_dual_grasps(
         _setup_axes(ax, mesh, extra, view)  # same limits in both panels
         ax.set_title(label, fontsize=10)
     _annotate_dual_grasps(fig, title or f"{len(grasps)} dual grasps, gripper {model.name}")
-    return _save(fig, out, dpi)
+    return save_png(fig, out, dpi=dpi)
 
 
 def _draw_dual_grasp(
@@ -186,7 +185,7 @@ def render_objects(
         raise ValueError("render_objects: expected at least one object, found none")
     columns = max(1, min(columns, len(items)))
     rows = -(-len(items) // columns)
-    fig = _new_figure(3.0 * columns, 3.0 * rows)
+    fig = new_figure(3.0 * columns, 3.0 * rows)
     for i, (label, mesh) in enumerate(items):
         ax = fig.add_subplot(rows, columns, i + 1, projection="3d")
         ax.add_collection3d(_mesh_collection(mesh, color=(0.55, 0.65, 0.85), alpha=1.0))
@@ -194,18 +193,4 @@ def render_objects(
         ext = np.asarray(mesh.extents)
         ax.set_title(f"{label}\n{ext[0]:.2f} x {ext[1]:.2f} x {ext[2]:.2f} m", fontsize=8)
     fig.tight_layout()
-    return _save(fig, out, dpi)
-
-
-def _new_figure(width: float, height: float) -> Figure:
-    """A figure of ``width`` x ``height`` inches on its own Agg canvas (no pyplot)."""
-    fig = Figure(figsize=(width, height))
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save(fig: Figure, out: str | os.PathLike[str], dpi: int) -> Path:
-    out = Path(out)
-    with atomic_path(out) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi)
-    return out
+    return save_png(fig, out, dpi=dpi)

@@ -8,11 +8,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from .atomic import atomic_path
 from .errors import GraspFileError
+from .figures import new_figure, save_png
 from .io import manifest_entry_path, read_dg16m, read_manifest
 
 
@@ -128,18 +127,13 @@ def plot_stats(stats: DatasetStats, out: str | os.PathLike[str]) -> list[Path]:
         "passes_per_object.png": _passes_figure(stats),
         "loss_hist.png": _loss_figure(stats),
     }
-    written = []
-    for name, fig in figures.items():
-        path = root / name
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png", dpi=120, bbox_inches="tight")
-        written.append(path)
-    return written
+    return [
+        save_png(fig, root / name, dpi=120, bbox_inches="tight") for name, fig in figures.items()
+    ]
 
 
 def _figure(width: float, height: float) -> tuple[Figure, Any]:
-    fig = Figure(figsize=(width, height))
-    FigureCanvasAgg(fig)
+    fig = new_figure(width, height)
     return fig, fig.add_subplot()
 
 

@@ -9,7 +9,6 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.atomic import atomic_path
 from dg16m_env.benchmark import SOURCES, Benchmark
 from dg16m_env.trial import PHASES
 
@@ -82,13 +81,11 @@ def format_summary(bench: Benchmark) -> str:
 def plot_summary(bench: Benchmark, path: str | os.PathLike[str]) -> None:
     """Three panels: success rate by pair source, by family (FC-passing vs random), and the
     phase where failures happen. Written atomically as PNG."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from dataset_gen.figures import new_figure, save_png
 
     s = bench.summary()
     families = summary_by_family(bench)
-    fig = Figure(figsize=(16, 4.5))
-    FigureCanvasAgg(fig)  # no pyplot: no global state, no backend switch
+    fig = new_figure(16, 4.5)
     axes = fig.subplots(1, 3, gridspec_kw={"width_ratios": [1, 2.2, 2]})
     names = list(s["by_source"])
     rates = [s["by_source"][n]["sim_success_rate"] or 0.0 for n in names]
@@ -121,5 +118,4 @@ def plot_summary(bench: Benchmark, path: str | os.PathLike[str]) -> None:
         f"{1000 * s['trials']['max_penetration_m']:.2f} mm"
     )
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
+    save_png(fig, path, dpi=110)

@@ -534,8 +534,7 @@ def write_strip(
         raise ReplayError(
             f"captions: expected one per frame ({len(frames)}), found {len(captions)}"
         )
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from dataset_gen.figures import new_figure, save_png
 
     n = len(frames)
     columns = columns or (n if n <= 4 else 4)
@@ -547,8 +546,8 @@ def write_strip(
     caption_in = 0.3
     title_in = (0.2 + 0.2 * (title.count("\n") + 1)) if title else 0.0
     fig_h = rows * (height / dpi + caption_in) + title_in
-    fig = Figure(figsize=(fig_w, fig_h), dpi=dpi)
-    canvas = FigureCanvasAgg(fig)  # no pyplot: no global state, no backend switch
+    fig = new_figure(fig_w, fig_h, dpi=dpi)
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
     for i, (frame, text) in enumerate(zip(frames, captions, strict=True)):
         r, c = divmod(i, columns)
         bottom = fig_h - title_in - (r + 1) * (height / dpi + caption_in) + caption_in
@@ -565,15 +564,12 @@ def write_strip(
             fontsize=9,
             family="monospace",
         )
-        drawn = label.get_window_extent(renderer=canvas.get_renderer()).width
+        drawn = label.get_window_extent(renderer=renderer).width
         if drawn > 0.96 * width:  # shrink to fit under its frame
             label.set_fontsize(max(4.0, 9.0 * 0.96 * width / drawn))
     if title:
         fig.text(0.5, 1.0 - title_in * 0.5 / fig_h, title, ha="center", va="center", fontsize=10)
-    out = Path(path)
-    with atomic_path(out) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi, facecolor="white")
-    return out
+    return save_png(fig, path, dpi=dpi, facecolor="white")
 
 
 def write_gif(
