@@ -505,13 +505,16 @@ def _force_closure_rates(results: Any, n_passing: int) -> dict[str, dict[str, An
     return rates
 
 
-def _run_payload(file: Path, object_id: str, results: Any, n_passing: int) -> dict[str, Any]:
+def _run_payload(
+    file: Path, object_id: str, results: Any, n_passing: int, hits: dict[str, int]
+) -> dict[str, Any]:
     """The JSON report of ``dg16m sim run`` (machine-readable: full precision, NaN as null)."""
     return {
         "file": str(file),
         "object": object_id,
         "summary": _finite(results.summary()),
         "invalid_reasons": results.invalid_reasons(),
+        "open_hand_inside": hits,
         "force_closure": _force_closure_rates(results, n_passing),
     }
 
@@ -536,8 +539,8 @@ def _run(args: argparse.Namespace) -> int:
     results = run_trials(scene, poses, progress=not args.json and sys.stderr.isatty())
     hits = _open_hand_hits(scene, poses, results)
     if args.json:
-        payload = _run_payload(args.file, obj.object_id, results, passing.size)
-        print(json.dumps({**payload, "open_hand_inside": hits}, indent=2))
+        payload = _run_payload(args.file, obj.object_id, results, passing.size, hits)
+        print(json.dumps(payload, indent=2))
         return 0
     lines = _sim_run_report(args.file, obj.object_id, results, passing.size, hits)
     if hits:

@@ -189,17 +189,12 @@ def axis_gravity_wrenches(mass: float = PAPER.mass, gravity: float = PAPER.gravi
 # --------------------------------------------------------------------------------------------
 
 
-def _scalar(value: Any) -> Any:
-    """Numpy scalars as Python numbers, so that the shared checks accept them."""
-    return value.item() if isinstance(value, np.generic) else value
-
-
 def _number(name: str, value: Any, *, allow_zero: bool = False) -> float:
-    return check_number(name, _scalar(value), allow_zero=allow_zero, error=ForceClosureError)
+    return check_number(name, value, allow_zero=allow_zero, error=ForceClosureError)
 
 
 def _integer(name: str, value: Any, minimum: int) -> int:
-    return check_integer(name, _scalar(value), minimum=minimum, error=ForceClosureError)
+    return check_integer(name, value, minimum=minimum, error=ForceClosureError)
 
 
 @dataclass(frozen=True)
