@@ -306,11 +306,12 @@ def _largest_eigenvalue(H):
 
 
 # The steps of :func:`solve_batch` allocate nothing, so they are compiled without numba's
-# reference counting (``_nrt=False``): a call then passes its work arrays without the atomic
-# reference-count updates that made the same steps 7-10 % slower as ``inline="always"`` helpers
-# and about 18 % slower as ordinary calls than one monolithic loop. Measured on the kernel alone
-# (40,000 synthetic pairs, one core): this version is 11 % (verdicts) and 20 % (exact losses)
-# faster than that loop, with bit-identical outputs.
+# reference counting (``_nrt=False``, a private numba option): a call then passes its work arrays
+# without atomic reference-count updates. Why: in a one-off comparison with the previous
+# monolithic loop (40,000 synthetic pairs, one core; not a bench script, so not a recorded claim)
+# the same split cost 7-18 % with reference counting and none without it, with bit-identical
+# outputs. The recorded throughput is bench/fc_throughput.py's (BENCHMARKS.md). Should a numba
+# release drop the option, removing it costs only that speed.
 
 
 @njit(cache=True, _nrt=False)
