@@ -2,8 +2,10 @@
 
 The shipped ``dg16m_env/data/benchmark.h5`` was built on one machine. This script rebuilds some or
 all of its objects here (same parameters, same seeds) and reports, row by row, what reproduces:
-inputs (poses, contacts, force-closure verdicts), labels, statuses, failing phases, and how far
-the floating-point trial measures (slip, rotation, penetration) moved. On the machine that built
+inputs (poses, contacts, force-closure verdicts), labels (the binary label and the success
+probabilities at both levels), every trial's status and failing phase (nominal and perturbed),
+the nominal trial's discrete results, and how far its floating-point measures (slip, rotation,
+penetration) moved. On the machine that built
 the file everything is identical; on another CPU the physics differs in the last bits and, after
 contact chaos, by more. This is how the README's reproducibility claim was measured.
 
@@ -79,8 +81,13 @@ def _compare(shipped: Benchmark, rows: np.ndarray, rebuilt: Benchmark) -> dict:
             continue
         a, b = getattr(shipped.trials, name)[rows], getattr(rebuilt.trials, name)
         exact[name] = int((a != b).reshape(rows.size, -1).any(axis=1).sum())
+    for name in ("status", "failing_phase"):  # every trial of the row, nominal and perturbed
+        a, b = getattr(shipped.labels, name)[rows], getattr(rebuilt.labels, name)
+        exact[f"labels.{name}"] = int((a != b).any(axis=1).sum())
+    for level in ("full", "gravity"):
+        exact[f"p_{level}"] = int((shipped.p(level)[rows] != rebuilt.p(level)).sum())
     out["exact_differ"] = exact
-    labels_a, labels_b = shipped.trials.success[rows], rebuilt.trials.success
+    labels_a, labels_b = shipped.label()[rows], rebuilt.label()
     flips = np.flatnonzero(labels_a != labels_b)
     out["label_flips"] = [
         {

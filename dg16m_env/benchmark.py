@@ -1,4 +1,4 @@
-"""The simulation benchmark: dual grasps on fixed objects, each labelled by a MuJoCo trial.
+"""The simulation benchmark: dual grasps on fixed objects, each labelled by a success probability.
 
 Building (``dg16m benchmark build``)
 ------------------------------------
@@ -7,21 +7,28 @@ user's meshes with DG16M grasp files:
 
 1. sample :attr:`BenchmarkParameters.n_grasps` antipodal single-arm grasps (Panda hand);
 2. pair them like the generator (``PAPER.min_center_distance`` centre pruning, gripper-gripper
-   collision) and check force closure; draw up to ``n_passing`` passing and ``n_failing``
-   failing candidates, plus ``n_random`` uniformly random pairs of the same grasps (the paper's
-   ablation, scored too), so that labels are mixed; with a DG16M file instead, draw its stored
-   passing / failing pairs (:func:`choose_file_pairs`);
-3. run the trial protocol (:mod:`dg16m_env.trial`) on every pair: the simulation label.
+   collision: the *candidates*) and check force closure; draw the paper's four arms
+   (Table III, :data:`SOURCES`): up to ``n_passing`` force-closure-passing candidates
+   (``fc_pass``), ``n_failing`` failing candidates whose loss is proven above
+   ``PAPER.failing_min_loss`` (``fc_fail``, as the release keeps them; a shortfall of passing
+   pairs is filled from them), ``n_random`` pairs drawn uniformly among the candidates
+   (``random``, the paper's random dual-arm pairs) and ``n_farthest`` of the pairs that join each
+   grasp to the grasp whose centre is farthest from it (``farthest``, the paper's diametrically
+   opposite pairing). With a DG16M file instead, draw its stored passing / failing pairs
+   (:func:`choose_file_pairs`);
+3. label every pair with its success probability (:mod:`dg16m_env.labels`): the trial protocol
+   (:mod:`dg16m_env.trial`) at the nominal pose and at K seeded perturbations of it, at two
+   levels (held through every disturbance; held under gravity).
 
 Objects are independent tasks (process pool or Ray); each finished object is written to
 ``OUT/objects/<id>.h5`` and recorded in ``OUT/manifest.json``, so an interrupted build resumes.
 The last step concatenates them, in the order of the object list, into ``OUT/benchmark.h5``.
 Results do not depend on the number of workers or the backend.
 
-File schema (``format = "dg16m-benchmark"``, ``schema_version = 1``)
+File schema (``format = "dg16m-benchmark"``, ``schema_version = 2``)
 ----------------------------------------------------------------------
-Root attributes: ``format``, ``schema_version``, ``metadata`` (JSON: parameters, scene,
-protocol, phases, status names, sources, package version).
+Root attributes: ``format``, ``schema_version``, ``metadata`` (JSON: parameters, with scene,
+protocol and perturbation; phases, status names, sources, package version).
 
 ``objects/`` (O rows): ``ids`` (str), ``families`` (str, "" for meshes), ``seeds`` (int64, -1 for
 meshes), ``files`` (str: mesh file, relative to the build's mesh folder, "" for procedural),
@@ -35,10 +42,20 @@ normals (NaN when the source file has none), ``source`` (int8, index into :data:
 ``fc_passed`` (bool), ``fc_loss`` (float64, N: force-closure residual).
 
 ``sim/`` (N rows, see :class:`dg16m_env.trial.TrialResults`): ``status`` (int8
-:class:`~dg16m_env.trial.TrialStatus`), ``success`` (bool, the label), ``failing_phase`` (int8
-index into :data:`~dg16m_env.trial.PHASES`, -1 none), ``invalid_reason`` (int8),
-``max_displacement`` (float64, m), ``max_rotation_deg`` (float64), ``max_penetration`` (float64,
-m), ``contacts_after_close`` and ``contacts_final`` ((N, 2) int16), ``ejected`` (bool).
+:class:`~dg16m_env.trial.TrialStatus`), ``success`` (bool, the nominal trial held),
+``failing_phase`` (int8 index into :data:`~dg16m_env.trial.PHASES`, -1 none),
+``invalid_reason`` (int8), ``max_displacement`` (float64, m), ``max_rotation_deg`` (float64),
+``max_penetration`` (float64, m), ``contacts_after_close`` and ``contacts_final`` ((N, 2)
+int16), ``ejected`` (bool): the nominal trial's full result.
+
+``labels/`` (N rows, see :class:`dg16m_env.labels.GraspLabels`; K = ``n_perturbations``):
+``trial_status`` and ``trial_phase`` ((N, K + 1) int8: every trial's status and failing phase,
+column 0 the nominal trial), ``seeds`` (int64 per-row perturbation seeds), ``p_success`` and
+``p_gravity`` (float64: the success probabilities at the two levels; checked against
+``trial_status`` / ``trial_phase`` on reading), ``label`` (bool, ``p_success >= 0.5``).
+
+Version 1 files (one trial per pair, three pair sources) are refused with a message that says
+so; rebuild them with ``dg16m benchmark build``.
 """
 
 from __future__ import annotations
@@ -69,8 +86,10 @@ from dataset_gen.pairing import (
     candidate_pairs,
     dual_contacts,
     dual_poses,
+    farthest_pairs,
     random_pairs,
     score_pairs,
+    select_pairs,
 )
 from dataset_gen.parallel import Backend, run_resumable
 from dataset_gen.parameters import PAPER
@@ -78,17 +97,31 @@ from dataset_gen.procedural import benchmark_specs
 from dataset_gen.sampling import sample_antipodal_grasps
 from dataset_gen.sources import ObjectSource, mesh_sources, object_seed, procedural_sources
 from dg16m_env.decomposition import object_parts
+from dg16m_env.labels import (
+    LEVELS,
+    GraspLabels,
+    LabelError,
+    PerturbationSpec,
+    concatenate_labels,
+    row_seeds,
+    success_probability,
+)
+from dg16m_env.rates import object_rate
 from dg16m_env.scene import SceneParameters, compile_scene
-from dg16m_env.trial import PHASES, TrialProtocol, TrialResults, TrialStatus, run_trials
+from dg16m_env.trial import PHASES, TrialProtocol, TrialResults, TrialStatus
 
 FORMAT = "dg16m-benchmark"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 BENCHMARK_FILE = "benchmark.h5"
 OBJECTS_FOLDER = "objects"
 
-SOURCES = ("fc_pass", "fc_fail", "random", "file_pass", "file_fail")
-"""Where a benchmark pair comes from: force-closure candidates that pass / fail, uniformly random
-pairs (the ablation), or the passing / failing pairs of a user's DG16M file."""
+SOURCES = ("fc_pass", "fc_fail", "random", "farthest", "file_pass", "file_fail")
+"""Where a benchmark pair comes from (the arms): force-closure-passing candidates, failing
+candidates with loss > ``PAPER.failing_min_loss``, random candidates, farthest pairs, or the
+passing / failing pairs of a user's DG16M file."""
+
+ARMS = ("fc_pass", "fc_fail", "random", "farthest")
+"""The paper's four arms (Table III) of a sampled benchmark."""
 
 EMBEDDED_BENCHMARK = Path(__file__).with_name("data") / BENCHMARK_FILE
 """The procedural benchmark built with the default parameters, shipped with the package."""
@@ -110,8 +143,11 @@ class BenchmarkParameters:
         n_grasps: single-arm grasps sampled per object.
         n_passing: force-closure-passing candidate pairs per object (fewer if not available; the
             shortfall is filled with failing candidates).
-        n_failing: failing candidate pairs per object.
-        n_random: uniformly random pairs per object (the ablation; scored, not filtered).
+        n_failing: failing candidate pairs per object (loss proven > ``failing_min_loss``).
+        n_random: pairs drawn uniformly among the candidates per object.
+        n_farthest: farthest pairs per object (drawn among the pairs joining each grasp to the
+            grasp whose centre is farthest from it).
+        failing_min_loss: failing candidates must have a loss above this (N).
         mu: friction coefficient (sampling, force closure and simulation).
         mass: object mass (kg).
         f_high: force bound per contact in the force-closure check (N).
@@ -119,6 +155,7 @@ class BenchmarkParameters:
         min_center_distance: pruning distance of the candidates (m).
         scene: simulation constants (``friction`` is set from ``mu``).
         protocol: trial protocol (``gravity`` is used by force closure too).
+        perturbation: K, d and theta of the success probabilities (its seed is the labels').
 
     ``mu``, ``mass``, ``f_high``, ``threshold``, ``min_center_distance`` and the scene's and
     protocol's friction, squeeze force and gravity default to the paper's values
@@ -128,8 +165,10 @@ class BenchmarkParameters:
     seed: int = 0
     n_grasps: int = 200
     n_passing: int = 40
-    n_failing: int = 30
-    n_random: int = 30
+    n_failing: int = 20
+    n_random: int = 20
+    n_farthest: int = 20
+    failing_min_loss: float = PAPER.failing_min_loss
     mu: float = PAPER.mu
     mass: float = PAPER.mass
     f_high: float = PAPER.f_high
@@ -137,14 +176,22 @@ class BenchmarkParameters:
     min_center_distance: float = PAPER.min_center_distance
     scene: SceneParameters = field(default_factory=SceneParameters)
     protocol: TrialProtocol = field(default_factory=TrialProtocol)
+    perturbation: PerturbationSpec = field(default_factory=PerturbationSpec)
 
     def __post_init__(self) -> None:
         check_fields(
             self,
             error=BenchmarkError,
-            integers={"seed": 0, "n_grasps": 2, "n_passing": 0, "n_failing": 0, "n_random": 0},
-            zero_allowed=("min_center_distance",),
-            skip=("scene", "protocol"),
+            integers={
+                "seed": 0,
+                "n_grasps": 2,
+                "n_passing": 0,
+                "n_failing": 0,
+                "n_random": 0,
+                "n_farthest": 0,
+            },
+            zero_allowed=("min_center_distance", "failing_min_loss"),
+            skip=("scene", "protocol", "perturbation"),
         )
         if self.scene.friction != self.mu:
             object.__setattr__(self, "scene", replace(self.scene, friction=self.mu))
@@ -168,6 +215,8 @@ class BenchmarkParameters:
                 values["scene"] = SceneParameters.from_dict(values["scene"])
             if "protocol" in values:
                 values["protocol"] = TrialProtocol.from_dict(values["protocol"])
+            if "perturbation" in values:
+                values["perturbation"] = PerturbationSpec.from_dict(values["perturbation"])
         except Dg16mError as exc:
             raise BenchmarkError(f"parameters: {exc}") from None
         return cls(**values)
@@ -226,7 +275,8 @@ class Benchmark:
         source: (N,) int8 index into :data:`SOURCES`.
         fc_passed: (N,) bool.
         fc_loss: (N,) float64.
-        trials: the simulation results (labels).
+        labels: the success probabilities (every trial's status, the nominal trial's full
+            result, the perturbation seeds).
         metadata: parameters and provenance (JSON-ready).
     """
 
@@ -238,7 +288,7 @@ class Benchmark:
     source: np.ndarray
     fc_passed: np.ndarray
     fc_loss: np.ndarray
-    trials: TrialResults
+    labels: GraspLabels
     metadata: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -246,9 +296,24 @@ class Benchmark:
         return int(self.object_index.size)
 
     @property
-    def labels(self) -> np.ndarray:
-        """(N,) bool simulation labels (True: the dual grasp held)."""
-        return self.trials.success
+    def trials(self) -> TrialResults:
+        """The nominal trials' full results."""
+        return self.labels.nominal
+
+    def p(self, level: str = "full") -> np.ndarray:
+        """(N,) success probabilities at ``level`` (``"full"``: every disturbance, the headline;
+        ``"gravity"``: held under gravity, the paper's)."""
+        return self.labels.p(level)
+
+    def label(self, level: str = "full") -> np.ndarray:
+        """(N,) bool binary labels (``p >= 0.5``) at ``level``."""
+        return self.labels.label(level)
+
+    def arm_rows(self, arm: str) -> np.ndarray:
+        """(N,) bool: the rows of one arm (:data:`SOURCES`)."""
+        if arm not in SOURCES:
+            raise BenchmarkError(f"arm: expected one of {SOURCES}, found {arm!r}")
+        return self.source == SOURCES.index(arm)
 
     def parameters(self) -> BenchmarkParameters:
         """The parameters the benchmark was built with (from its metadata; scene and protocol
@@ -262,7 +327,8 @@ class Benchmark:
     def __repr__(self) -> str:  # N rows of poses and contacts: counts, not contents
         return (
             f"Benchmark({len(self.objects)} objects, {self.n} dual grasps, "
-            f"{int(self.labels.sum())} labelled success, {int((~self.trials.valid).sum())} invalid)"
+            f"{int(self.label().sum())} labelled success, {int((~self.trials.valid).sum())} "
+            f"invalid nominal trials, {self.labels.spec.trials} trials per pair)"
         )
 
     def object_rows(self, object_id: str) -> np.ndarray:
@@ -272,37 +338,38 @@ class Benchmark:
             raise BenchmarkError(f"object: expected one of the {len(ids)} ids, found {object_id!r}")
         return np.flatnonzero(self.object_index == ids.index(object_id))
 
-    def summary(self) -> dict[str, Any]:
-        """Success rates per source (valid trials only), penetration, failure phases."""
+    def summary(self, *, n_resamples: int = 2000, seed: int = 0) -> dict[str, Any]:
+        """Per arm and level: FCE, GSR over all pairs and over valid ones (with object-resampled
+        95 % confidence intervals, :func:`dg16m_env.rates.object_rate`), label rate, uncertain
+        fraction; plus the nominal trials' counts (JSON-ready)."""
         valid = self.trials.valid
-        per_source: dict[str, Any] = {}
+        by_arm: dict[str, Any] = {}
         for k, name in enumerate(SOURCES):
             rows = self.source == k
             if not rows.any():
                 continue
-            ran = rows & valid
-            per_source[name] = {
+            entry: dict[str, Any] = {
                 "pairs": int(rows.sum()),
-                "valid": int(ran.sum()),
-                "fc_pass_fraction": float(self.fc_passed[rows].mean()),
-                "sim_success_rate": float(self.labels[ran].mean()) if ran.any() else None,
+                "objects": int(np.unique(self.object_index[rows]).size),
+                "valid": int((rows & valid).sum()),
+                "fce": float(self.fc_passed[rows].mean()),
             }
-        fc = self.fc_passed & valid
-        random_rows = (self.source == SOURCES.index("random")) & valid
+            for level in LEVELS:
+                p = self.p(level)
+                entry[level] = {
+                    "gsr": object_rate(p, self.object_index, rows, n_resamples, seed),
+                    "gsr_valid": object_rate(p, self.object_index, rows & valid, n_resamples, seed),
+                    "label_rate": float(self.label(level)[rows].mean()),
+                    "uncertain_fraction": float(self.labels.uncertain(level)[rows].mean()),
+                }
+            by_arm[name] = entry
         return {
             "objects": len(self.objects),
             "pairs": self.n,
-            "trials": self.trials.summary(),
-            "by_source": per_source,
-            "sim_success_rate_fc_passing": float(self.labels[fc].mean()) if fc.any() else None,
-            "sim_success_rate_fc_failing": (
-                float(self.labels[~self.fc_passed & valid].mean())
-                if (~self.fc_passed & valid).any()
-                else None
-            ),
-            "sim_success_rate_random": (
-                float(self.labels[random_rows].mean()) if random_rows.any() else None
-            ),
+            "trials_per_pair": self.labels.spec.trials,
+            "perturbation": self.labels.spec.to_dict(),
+            "nominal_trials": self.trials.summary(),
+            "by_arm": by_arm,
         }
 
 
@@ -315,13 +382,10 @@ def concatenate(parts: Sequence[Benchmark], metadata: Mapping[str, Any] | None =
     for part in parts:
         index.append(part.object_index + len(objects))
         objects.extend(part.objects)
-    trials = TrialResults(
-        **{
-            k: np.concatenate([getattr(p.trials, k) for p in parts])
-            for k in TrialResults.ARRAY_FIELDS
-        },
-        protocol=parts[0].trials.protocol,
-    )
+    try:
+        labels = concatenate_labels([p.labels for p in parts])
+    except LabelError as exc:
+        raise BenchmarkError(str(exc)) from None
     return Benchmark(
         objects=objects,
         object_index=np.concatenate(index).astype(np.int32),
@@ -331,7 +395,7 @@ def concatenate(parts: Sequence[Benchmark], metadata: Mapping[str, Any] | None =
         source=np.concatenate([p.source for p in parts]),
         fc_passed=np.concatenate([p.fc_passed for p in parts]),
         fc_loss=np.concatenate([p.fc_loss for p in parts]),
-        trials=trials,
+        labels=labels,
         metadata=dict(metadata if metadata is not None else parts[0].metadata),
     )
 
@@ -378,6 +442,13 @@ def write_benchmark(path: str | os.PathLike[str], bench: Benchmark, *, level: in
         for name in TrialResults.ARRAY_FIELDS:
             write_array(sim, name, np.asarray(getattr(bench.trials, name)), level)
         write_array(sim, "success", bench.trials.success, level)
+        labels = f.create_group("labels", track_order=False)
+        write_array(labels, "trial_status", bench.labels.status.astype(np.int8), level)
+        write_array(labels, "trial_phase", bench.labels.failing_phase.astype(np.int8), level)
+        write_array(labels, "seeds", bench.labels.seeds.astype(np.int64), level)
+        write_array(labels, "p_success", bench.labels.p_success, level)
+        write_array(labels, "p_gravity", bench.labels.p_gravity, level)
+        write_array(labels, "label", bench.labels.label(), level)
 
 
 def _read(
@@ -418,6 +489,13 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
         if fmt != FORMAT:
             raise BenchmarkError(f"{path}: expected format {FORMAT!r}, found {fmt!r}")
         version = int(f.attrs.get("schema_version", -1))
+        if version == 1:
+            raise BenchmarkError(
+                f"{path}: expected schema_version {SCHEMA_VERSION}, found 1: a version 1 "
+                "benchmark labels each pair with one trial at the exact pose (dg16m 0.1); "
+                "version 2 labels are success probabilities over perturbed trials. Rebuild it "
+                "with `dg16m benchmark build` (the shipped benchmark is version 2)"
+            )
         if version != SCHEMA_VERSION:
             raise BenchmarkError(
                 f"{path}: expected schema_version {SCHEMA_VERSION}, found {version}"
@@ -449,6 +527,20 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
             shape: tuple[int | None, ...] = (n, 2) if name.startswith("contacts") else (n,)
             kinds = "f" if name in FLOAT_SIM else ("b" if name == "ejected" else "i")
             sim[name] = _read(f, path, f"sim/{name}", shape, kinds)
+        try:
+            parameters = BenchmarkParameters.from_dict(metadata.get("parameters", {}))
+        except Dg16mError as exc:
+            raise BenchmarkError(f"{path}: metadata: {exc}") from None
+        trials = parameters.perturbation.trials
+        label_arrays = {
+            "status": _read(f, path, "labels/trial_status", (n, trials), "i"),
+            "failing_phase": _read(f, path, "labels/trial_phase", (n, trials), "i"),
+            "seeds": _read(f, path, "labels/seeds", (n,), "i"),
+        }
+        stored_p = {
+            "p_success": _read(f, path, "labels/p_success", (n,), "f"),
+            "p_gravity": _read(f, path, "labels/p_gravity", (n,), "f"),
+        }
     if n and (index.min() < 0 or index.max() >= o):
         raise BenchmarkError(
             f"{path}: grasps/object_index: expected values in [0, {o}), found "
@@ -476,13 +568,27 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
             )
         )
     try:
-        protocol = TrialProtocol.from_dict(metadata.get("parameters", {}).get("protocol", {}))
-    except Dg16mError as exc:
-        raise BenchmarkError(f"{path}: metadata: {exc}") from None
+        labels = GraspLabels(
+            nominal=TrialResults(**sim, protocol=parameters.protocol),
+            spec=parameters.perturbation,
+            status=label_arrays["status"].astype(np.int8),
+            failing_phase=label_arrays["failing_phase"].astype(np.int8),
+            seeds=label_arrays["seeds"].astype(np.int64),
+        )
+    except LabelError as exc:
+        raise BenchmarkError(f"{path}: labels: {exc}") from None
+    for name, stored in stored_p.items():
+        derived = getattr(labels, name)
+        if not np.array_equal(stored, derived):
+            row = int(np.argmax(stored != derived))
+            raise BenchmarkError(
+                f"{path}: labels/{name}: expected the fraction of held trials in "
+                f"labels/trial_status, found {stored[row]!r} against {derived[row]!r} in row {row}"
+            )
     return Benchmark(
         objects=objects,
         object_index=index.astype(np.int32),
-        trials=TrialResults(**sim, protocol=protocol),
+        labels=labels,
         metadata=metadata,
         **arrays,
     )
@@ -558,6 +664,11 @@ def _object_metadata(
 def sampled_pairs(
     obj: GraspObject, params: BenchmarkParameters, rng: np.random.Generator
 ) -> dict[str, np.ndarray]:
+    """One object's pairs of the four arms (see the module docstring), in arm order.
+
+    Draws from ``rng`` in a fixed order: grasps, the passing block, the failing pool's order,
+    the random candidates, the farthest pairs.
+    """
     grasps = sample_antipodal_grasps(obj, n_grasps=params.n_grasps, mu=params.mu, rng=rng)
     candidates = candidate_pairs(grasps, min_center_distance=params.min_center_distance)
     fc_kwargs = {
@@ -568,20 +679,30 @@ def sampled_pairs(
         "threshold": params.threshold,
     }
     verdict = score_pairs(grasps, candidates.pairs, **fc_kwargs)
-    full_rank = verdict.rank_ok
-    passing = np.flatnonzero(verdict.passed)
-    failing = np.flatnonzero(full_rank & ~verdict.passed)
-    take_pass = _choose(passing, params.n_passing, rng)
-    take_fail = _choose(failing, params.n_failing + params.n_passing - take_pass.size, rng)
-    random = random_pairs(grasps.n, params.n_random, rng)
-    pairs = np.concatenate([candidates.pairs[take_pass], candidates.pairs[take_fail], random])
+    cand_points, cand_normals = dual_contacts(grasps, candidates.pairs)
+    take_pass = min(params.n_passing, int(np.sum(verdict.passed)))
+    selection = select_pairs(
+        verdict,
+        cand_points,
+        cand_normals,
+        rng=rng,
+        max_passing=params.n_passing,
+        max_failing=params.n_failing + params.n_passing - take_pass,
+        failing_min_loss=params.failing_min_loss,
+    )
+    random = random_pairs(grasps.n, params.n_random, rng, among=candidates.pairs)
+    farthest = farthest_pairs(grasps)
+    farthest = farthest[_choose(np.arange(len(farthest)), params.n_farthest, rng)]
+    arms = {
+        "fc_pass": candidates.pairs[selection.passing_indices],
+        "fc_fail": candidates.pairs[selection.failing_indices],
+        "random": random,
+        "farthest": farthest,
+    }
+    pairs = np.concatenate(list(arms.values())).reshape(-1, 2)
     source = np.concatenate(
-        [
-            np.full(take_pass.size, SOURCES.index("fc_pass")),
-            np.full(take_fail.size, SOURCES.index("fc_fail")),
-            np.full(len(random), SOURCES.index("random")),
-        ]
-    ).astype(np.int8)
+        [np.full(len(v), SOURCES.index(k), dtype=np.int8) for k, v in arms.items()]
+    )
     points, normals = dual_contacts(grasps, pairs)
     exact = evaluate(points, normals, loss_rtol=1e-3, **fc_kwargs)  # exact losses, few pairs
     return {
@@ -671,11 +792,18 @@ def benchmark_object(item: BenchmarkSource, params: BenchmarkParameters) -> Benc
         else sampled_pairs(obj, params, rng)
     )
     scene = compile_scene(obj, params=params.scene, parts=parts)
-    trials = run_trials(scene, rows["poses"], params.protocol)
+    n = len(rows["poses"])
+    labels = success_probability(
+        scene,
+        rows["poses"],
+        spec=params.perturbation,
+        seeds=row_seeds(params.perturbation.seed, obj.object_id, n),
+        protocol=params.protocol,
+    )
     return Benchmark(
         objects=[_object_metadata(obj, source, parts)],
-        object_index=np.zeros(len(rows["poses"]), dtype=np.int32),
-        trials=trials,
+        object_index=np.zeros(n, dtype=np.int32),
+        labels=labels,
         metadata=benchmark_metadata(params),
         **rows,
     )
@@ -767,7 +895,9 @@ def _object_task(item: BenchmarkSource, out: str, params: BenchmarkParameters) -
         "status": "ok",
         "files": {"benchmark": relative},
         "pairs": bench.n,
-        "success": summary["success"],
+        "trials": bench.n * bench.labels.spec.trials,
+        "labelled_success": int(bench.label().sum()),
+        "mean_p_success": float(bench.p().mean()) if bench.n else 0.0,
         "invalid": summary["invalid"],
         "max_penetration_m": summary["max_penetration_m"],
     }

@@ -50,10 +50,13 @@ def register(subparsers: Any) -> None:
         BUILD_EXAMPLES,
         description=(
             "For each object: sample single-arm grasps, pair them, check force closure, draw "
-            "passing, failing and random pairs (about 100), and label each by a MuJoCo trial "
-            "(close, gravity, 12 disturbances; success when the object stays within 2 cm and 10 "
-            "degrees of the hands). Writes OUT/objects/<id>.h5, OUT/manifest.json and "
-            "OUT/benchmark.h5. Results do not depend on --workers or --backend; reruns resume."
+            "the four arms (force-closure passing, failing, random and farthest pairs; about "
+            "100), and label each pair by its success probability p over K + 1 MuJoCo trials "
+            "(the nominal hand poses and K = 4 perturbed ones, each hand moved 1 mm and turned "
+            "1 degree; a trial: close, gravity, 12 disturbances; held when the object stays "
+            "within 2 cm and 10 degrees of the hands). Writes OUT/objects/<id>.h5, "
+            "OUT/manifest.json and OUT/benchmark.h5 (schema version 2). Results do not depend "
+            "on --workers or --backend; reruns resume."
         ),
     )
     build.add_argument("--out", type=Path, required=True, help="output folder")
@@ -81,16 +84,31 @@ def register(subparsers: Any) -> None:
     info = add_command(
         sub,
         "info",
-        "Summarise a benchmark file: success rates by source and family, penetration.",
+        "Summarise a benchmark file: success probabilities per arm and level, failures.",
         INFO_EXAMPLES,
-        description="Print success rates of force-closure-passing, failing and random pairs, "
-        "failure phases and the deepest penetration; optionally plot them.",
+        description="Per arm (pair source), at both levels (full: held through every "
+        "disturbance; gravity: held under gravity, the paper's): FCE, GSR (mean success "
+        "probability p) over all pairs and over pairs with a valid nominal trial, each with an "
+        "object-resampled 95% confidence interval, binary label rate and uncertain fraction "
+        "(0.2 < p < 0.8). Then the histogram of p, the phases where failed trials broke, "
+        "invalid trials, the hands' penetration and GSR per object family. Only schema "
+        "version 2 files (rebuild older ones with 'dg16m benchmark build').",
     )
     info.add_argument(
         "file", type=Path, nargs="?", default=None, help="benchmark.h5 (default: the shipped one)"
     )
-    info.add_argument("--json", action="store_true", help="print JSON")
-    info.add_argument("--plot", type=Path, default=None, help="write a summary figure (PNG)")
+    info.add_argument(
+        "--json",
+        action="store_true",
+        help="print one JSON object instead of the text (finite numbers or null)",
+    )
+    info.add_argument(
+        "--plot",
+        type=Path,
+        default=None,
+        metavar="PNG",
+        help="also write a 2 x 2 summary figure (GSR per arm, p, failure phases, penetration)",
+    )
     info.set_defaults(handler=_info)
 
 
@@ -130,24 +148,25 @@ def _build(args: argparse.Namespace) -> int:
         address=args.address,
         progress=not args.no_progress,
     )
-    print(format_summary(read_benchmark(path)))
+    print(format_summary(read_benchmark(path), path=path))
     print(f"wrote {path}")
     return 0
 
 
 def _info(args: argparse.Namespace) -> int:
     from dg16m_env.benchmark import EMBEDDED_BENCHMARK, BenchmarkError, read_benchmark
-    from dg16m_env.benchmark_report import format_summary, plot_summary, summary_by_family
+    from dg16m_env.benchmark_report import benchmark_report, format_summary, plot_summary
 
     path = args.file if args.file is not None else EMBEDDED_BENCHMARK
     if args.file is None and not path.is_file():
         raise BenchmarkError(f"expected the shipped benchmark at {path}, found none (give a file)")
-    bench = read_benchmark(path)
+    bench = read_benchmark(path)  # BenchmarkError (e.g. a version 1 file): message, exit 2
+    report = benchmark_report(bench)
     if args.json:
-        print(json.dumps({**bench.summary(), "by_family": summary_by_family(bench)}, indent=2))
+        print(json.dumps(report, indent=2, allow_nan=False))
     else:
-        print(format_summary(bench))
+        print(format_summary(bench, report, path=path))
     if args.plot is not None:
-        plot_summary(bench, args.plot)
+        plot_summary(bench, args.plot, report)
         print(f"wrote {args.plot}")
     return 0

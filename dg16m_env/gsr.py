@@ -1,9 +1,14 @@
-"""Grasp success rate (GSR) core: simulate many dual grasps on many objects.
+"""Grasp success rate (GSR) core: success probabilities of many dual grasps on many objects.
 
-One call of :func:`dg16m_env.trial.run_trials` evaluates all dual grasps of one object on one
-compiled model; :func:`evaluate_objects` spreads objects over a process pool or Ray (the same task
-runner as the generator, :func:`dataset_gen.parallel.run_tasks`). Results are keyed by object id
-and do not depend on the worker count or the backend.
+One call of :func:`dg16m_env.labels.success_probability` labels all dual grasps of one object on
+one compiled model (nominal + K perturbed trials each, benchmark protocol v2);
+:func:`evaluate_objects` spreads objects over a process pool or Ray (the same task runner as the
+generator, :func:`dataset_gen.parallel.run_tasks`). Results are keyed by object id and do not
+depend on the worker count or the backend.
+
+GSR = the mean success probability over ALL submitted dual grasps: an invalid trial counts as a
+failure, and the grasps of an object that cannot be simulated count as 0
+(:meth:`GsrResult.success_rate`); the rate over valid nominal trials is reported beside it.
 """
 
 from __future__ import annotations
@@ -20,8 +25,9 @@ from dataset_gen.parallel import Backend, run_tasks
 from dataset_gen.parameters import PAPER
 from dataset_gen.sources import ObjectSource
 from dg16m_env.decomposition import object_parts
+from dg16m_env.labels import LEVELS, GraspLabels, PerturbationSpec, success_probability
 from dg16m_env.scene import SceneParameters, compile_scene
-from dg16m_env.trial import TrialProtocol, TrialResults, check_dual_grasps, run_trials
+from dg16m_env.trial import TrialProtocol, check_dual_grasps
 
 
 class GsrError(Dg16mError, ValueError):
@@ -59,49 +65,74 @@ class GraspJob:
 
 @dataclass
 class GsrResult:
-    """Per-object trial results and the overall grasp success rate."""
+    """Per-object success probabilities and the grasp success rates.
 
-    results: dict[str, TrialResults] = field(default_factory=dict)
+    Attributes:
+        results: ``{object id: GraspLabels}`` of the objects that were simulated.
+        errors: ``{object id: message}`` of the objects that could not be simulated.
+        submitted: ``{object id: number of dual grasps}`` for every job, simulated or not.
+    """
+
+    results: dict[str, GraspLabels] = field(default_factory=dict)
     errors: dict[str, str] = field(default_factory=dict)
+    submitted: dict[str, int] = field(default_factory=dict)
 
-    def success_rate(self) -> float:
-        """Successes / simulated (valid) trials over all objects (NaN when none ran)."""
-        ran = sum(int(r.valid.sum()) for r in self.results.values())
-        won = sum(int(r.success.sum()) for r in self.results.values())
+    def success_rate(self, level: str = "full") -> float:
+        """Mean success probability over every submitted dual grasp: invalid trials are
+        failures and an object that could not be simulated counts its grasps as 0 (NaN when
+        nothing was submitted)."""
+        total = sum(self.submitted.values())
+        won = sum(float(r.p(level).sum()) for r in self.results.values())
+        return won / total if total else float("nan")
+
+    def success_rate_valid(self, level: str = "full") -> float:
+        """Mean success probability over the dual grasps whose nominal trial ran (reported
+        beside :meth:`success_rate`, never instead of it; NaN when none ran)."""
+        ran = sum(int(r.nominal.valid.sum()) for r in self.results.values())
+        won = sum(float(r.p(level)[r.nominal.valid].sum()) for r in self.results.values())
         return won / ran if ran else float("nan")
 
-    def __repr__(self) -> str:  # one TrialResults per object: totals instead
-        trials = sum(r.n for r in self.results.values())
+    def __repr__(self) -> str:  # one GraspLabels per object: totals instead
+        grasps = sum(self.submitted.values())
         return (
-            f"GsrResult({len(self.results)} objects, {trials} trials, success rate "
+            f"GsrResult({len(self.results)} objects, {grasps} dual grasps, success rate "
             f"{self.success_rate():.3f}, {len(self.errors)} failed objects)"
         )
 
     def summary(self) -> dict[str, Any]:
         return {
-            "objects": len(self.results),
+            "objects": len(self.submitted),
+            "dual_grasps": sum(self.submitted.values()),
             "failed_objects": dict(self.errors),
-            "success_rate": self.success_rate(),
+            **{f"success_rate_{level}": self.success_rate(level) for level in LEVELS},
+            **{f"success_rate_valid_{level}": self.success_rate_valid(level) for level in LEVELS},
             "per_object": {k: v.summary() for k, v in sorted(self.results.items())},
         }
 
 
 def evaluate_object(
-    job: GraspJob, scene_params: SceneParameters, protocol: TrialProtocol
-) -> TrialResults:
-    """Load, compile once and run every dual grasp of ``job``."""
+    job: GraspJob,
+    scene_params: SceneParameters,
+    protocol: TrialProtocol,
+    spec: PerturbationSpec | None = None,
+) -> GraspLabels:
+    """Load, compile once and label every dual grasp of ``job`` (per-row seeds from
+    ``(spec.seed, object id)``)."""
     poses = check_dual_grasps(job.poses)
     obj = job.source.load(job.mass)
     parts = job.parts if job.parts is not None else object_parts(obj)
     scene = compile_scene(obj, params=scene_params, parts=parts)
-    return run_trials(scene, poses, protocol)
+    return success_probability(scene, poses, spec=spec, protocol=protocol)
 
 
 def _task(
-    job: GraspJob, scene_params: SceneParameters, protocol: TrialProtocol
-) -> TrialResults | str:
+    job: GraspJob,
+    scene_params: SceneParameters,
+    protocol: TrialProtocol,
+    spec: PerturbationSpec,
+) -> GraspLabels | str:
     try:
-        return evaluate_object(job, scene_params, protocol)
+        return evaluate_object(job, scene_params, protocol, spec)
     except Dg16mError as exc:  # a broken mesh fails only its own object
         return str(exc)
 
@@ -111,11 +142,12 @@ def evaluate_objects(
     *,
     scene_params: SceneParameters | None = None,
     protocol: TrialProtocol | None = None,
+    spec: PerturbationSpec | None = None,
     workers: int = 1,
     backend: Backend = "local",
     address: str | None = None,
 ) -> GsrResult:
-    """Simulate every job's dual grasps, objects in parallel.
+    """Success probabilities of every job's dual grasps, objects in parallel.
 
     Raises:
         GsrError: duplicate object ids.
@@ -125,8 +157,12 @@ def evaluate_objects(
         raise GsrError(
             f"jobs: expected unique object ids, found {len(ids) - len(set(ids))} repeats"
         )
-    out = GsrResult()
-    args = (scene_params or SceneParameters(), protocol or TrialProtocol())
+    out = GsrResult(submitted={job.object_id: len(np.asarray(job.poses)) for job in jobs})
+    args = (
+        scene_params or SceneParameters(),
+        protocol or TrialProtocol(),
+        spec or PerturbationSpec(),
+    )
     for job, result in run_tasks(
         _task, list(jobs), args, workers=workers, backend=backend, address=address
     ):

@@ -4,10 +4,9 @@
 controls of the C rollout: the same :func:`~dg16m_env.trial.schedule`,
 :func:`~dg16m_env.trial.trial_controls` and :func:`~dg16m_env.trial.initial_state`) and judges it
 with :func:`~dg16m_env.trial.analyse`, so its verdict is the verdict of
-:func:`~dg16m_env.trial.run_trials`. One difference is possible in principle: ``run_trials``
-restarts ``mujoco.rollout`` between segments of the trial (close + gravity, forces, torques), which
-drops the solver's warm start there, while the replay steps continuously; the trajectories can
-then differ by floating-point noise (the verdicts are compared in ``tests/test_replay.py``).
+:func:`~dg16m_env.trial.run_trials`, and its trajectory is the same bit for bit: ``run_trials``
+restarts ``mujoco.rollout`` at every phase (:func:`~dg16m_env.trial.trial_segments`), which starts
+the solver without a warm start, and the replay clears ``qacc_warmstart`` at the same steps.
 
 :func:`trial_frames` renders frames of a replayed trial with ``mujoco.Renderer`` (a free camera
 looking at the object, both hands fixed in the world), each with a caption
@@ -58,6 +57,7 @@ from dg16m_env.trial import (
     object_states,
     schedule,
     trial_controls,
+    trial_segments,
 )
 
 DEFAULT_AZIMUTH = 135.0
@@ -231,7 +231,10 @@ def step_trial(
     states = np.empty((plan.nstep + 1, start.size))
     sensors = np.empty((plan.nstep, model.nsensordata))
     states[0] = start
+    restarts = {seg.start for seg in trial_segments(plan)}
     for t in range(plan.nstep):
+        if t in restarts:  # as mujoco.rollout at the start of each segment
+            data.qacc_warmstart[:] = 0.0
         mujoco.mj_setState(model, data, controls[t], CONTROL_SPEC)
         mujoco.mj_step(model, data)
         mujoco.mj_getState(model, data, states[t + 1], STATE_SPEC)

@@ -127,6 +127,14 @@ def register(subparsers: Any) -> None:
     )
     row.add_argument("--row", type=int, default=None, metavar="N", help="the row to replay")
     row.add_argument(
+        "--trial",
+        type=int,
+        default=0,
+        metavar="T",
+        help="which of the row's K + 1 trials: 0 the nominal pose (default), 1..K the perturbed "
+        "poses its success probability was measured with (rebuilt from the stored seed)",
+    )
+    row.add_argument(
         "--meshes",
         type=Path,
         default=None,
@@ -164,10 +172,13 @@ def register(subparsers: Any) -> None:
         "Run the trial protocol on a DG16M file's pairs; success of passing vs failing pairs.",
         RUN_EXAMPLES,
         description="Run the MuJoCo trial on the force-closure passing and failing pairs of a "
-        "DG16M grasp file and print a summary (trials, invalid ones with their reasons, success, "
-        "failing phases, penetration) and the simulated success rate of the passing and of the "
-        "failing pairs (valid trials). A trial is invalid, and not run, when an open hand "
-        "already penetrates the object's convex parts or the two hands overlap.",
+        "DG16M grasp file, at each pair's nominal pose and at K perturbed poses (1 mm / 1 degree "
+        "per hand, the benchmark's protocol v2), and print a summary of the nominal trials "
+        "(invalid ones with their reasons, success, failing phases, penetration) and the mean "
+        "success probability of the passing and of the failing pairs, held through every "
+        "disturbance and held under gravity. A trial is invalid, and not run, when an open hand "
+        "already penetrates the object's convex parts or the two hands overlap; it counts as a "
+        "failure.",
     )
     run.add_argument("file", type=Path, metavar="FILE.h5", help="a DG16M grasp file")
     _object_options(run, required=True)
@@ -179,6 +190,17 @@ def register(subparsers: Any) -> None:
         help="at most K passing and K failing pairs (seeded sample; default: all)",
     )
     run.add_argument("--seed", type=int, default=0, help="seed of the --limit sample")
+    run.add_argument(
+        "--perturbations",
+        type=int,
+        default=None,
+        metavar="K",
+        help="perturbed trials per pair besides the nominal one, for its success probability "
+        "(benchmark protocol v2; default: 4, the benchmark's; 0: the nominal trial only)",
+    )
+    run.add_argument(
+        "--perturbation-seed", type=int, default=0, help="seed of the perturbations (default 0)"
+    )
     run.add_argument("--json", action="store_true", help="print JSON instead of text")
     run.set_defaults(handler=_run)
 
@@ -325,8 +347,10 @@ def _replay(args: argparse.Namespace) -> int:
 
 def _replay_benchmark(args, n_frames: int, width: int, height: int, camera) -> int:
     from dg16m_env.benchmark import SOURCES, read_benchmark
+    from dg16m_env.labels import perturb_poses
     from dg16m_env.replay import describe_result, replay_trial
     from dg16m_env.scene import compile_scene
+    from dg16m_env.trial import PHASES, TrialStatus, grasp_centres
 
     bench = read_benchmark(args.benchmark)
     row = _check_range("--row", args.row, bench.n, "row")
@@ -336,11 +360,18 @@ def _replay_benchmark(args, n_frames: int, width: int, height: int, camera) -> i
             f"{item.object_id}: expected --meshes DIR holding {item.file!r} (the benchmark's "
             "object is a mesh), found none given"
         )
+    trials = bench.labels.spec.trials
+    trial = _check_range("--trial", args.trial, trials, "trial (0 nominal, 1..K perturbed)")
     obj = item.load(args.meshes)
     scene = compile_scene(obj, params=bench.parameters().scene, parts=item.parts)
+    pose = bench.poses[row]
+    if trial > 0:
+        centres = grasp_centres(scene, pose[None])
+        perturbed = perturb_poses(pose[None], centres, bench.labels.seeds[[row]], bench.labels.spec)
+        pose = perturbed[0, trial - 1]
     replay = replay_trial(
         scene,
-        bench.poses[row],
+        pose,
         bench.trials.protocol,
         n_frames=n_frames,
         width=width,
@@ -353,18 +384,29 @@ def _replay_benchmark(args, n_frames: int, width: int, height: int, camera) -> i
         f"{SOURCES[int(bench.source[row])]} (force closure {verdict}, loss "
         f"{bench.fc_loss[row]:.3g} N)"
     )
-    label = describe_result(bench.trials, row)
-    print(f"  stored:   {label}")
+    print(
+        f"  success probability: {bench.p()[row]:.2f} through every disturbance, "
+        f"{bench.p('gravity')[row]:.2f} under gravity ({trials} trials: nominal + "
+        f"{trials - 1} perturbed)"
+    )
+    if trial == 0:
+        print(f"  stored nominal trial: {describe_result(bench.trials, row)}")
+    else:
+        stored = TrialStatus(int(bench.labels.status[row, trial])).name.lower()
+        phase = int(bench.labels.failing_phase[row, trial])
+        where = f" in {PHASES[phase]}" if phase >= 0 else ""
+        print(f"  stored perturbed trial {trial}: {stored}{where}")
     print(f"  replayed: {replay.trial.describe()}")
-    same = int(bench.trials.status[row]) == int(replay.trial.results.status[0]) and int(
-        bench.trials.failing_phase[row]
+    same = int(bench.labels.status[row, trial]) == int(replay.trial.results.status[0]) and int(
+        bench.labels.failing_phase[row, trial]
     ) == int(replay.trial.results.failing_phase[0])
     if not same:
         print(
             "  note: the replay differs from the stored label (a benchmark built with another "
             "dg16m or MuJoCo version?)"
         )
-    _write(replay, args, f"{item.object_id}, row {row}: {replay.trial.describe()}")
+    what = f"row {row}" if trial == 0 else f"row {row}, perturbed trial {trial}"
+    _write(replay, args, f"{item.object_id}, {what}: {replay.trial.describe()}")
     return 0
 
 
@@ -407,22 +449,30 @@ INVALID_MEANING = {
 
 
 def _sim_run_report(
-    file: Path, object_id: str, results: Any, n_passing: int, hits: dict[str, int]
+    file: Path, object_id: str, labels: Any, n_passing: int, hits: dict[str, int]
 ) -> list[str]:
     """The text report of ``dg16m sim run``: counts, rates, phases, and the invalid trials'
     reasons with what to do about them."""
     from dg16m_env.benchmark_report import percent, trial_lines
 
+    results = labels.nominal
     n = results.n
+    spec = labels.spec
     lines = [
         f"{file}: {n} pairs on {object_id} ({n_passing} passing, {n - n_passing} failing force "
         "closure)",
+        "  nominal trials:",
         *(f"  {line}" for line in trial_lines(results.summary())),
+        f"  success probability over {spec.trials} trials per pair (nominal + "
+        f"{spec.n_perturbations} perturbed by {1e3 * spec.translation:g} mm / "
+        f"{spec.rotation_deg:g} deg; invalid = failure):",
     ]
-    for name, rate in _force_closure_rates(results, n_passing).items():
+    for name, rate in _force_closure_rates(labels, n_passing).items():
         lines.append(
-            f"  sim success, fc {name}: {percent(rate['success_rate']).strip()} "
-            f"({rate['valid']} simulated of {rate['pairs']} pairs)"
+            f"    fc {name}: {percent(rate['p_full']).strip()} held through every disturbance, "
+            f"{percent(rate['p_gravity']).strip()} under gravity ({rate['pairs']} pairs, "
+            f"{rate['uncertain']} uncertain); nominal trial alone "
+            f"{percent(rate['nominal_success_rate']).strip()} of {rate['valid']} simulated"
         )
     return lines + _invalid_report(results, hits)
 
@@ -489,44 +539,58 @@ def _penetration_advice(args: argparse.Namespace, gripper: str) -> list[str]:
     return lines
 
 
-def _force_closure_rates(results: Any, n_passing: int) -> dict[str, dict[str, Any]]:
-    """Pairs, simulated (valid) trials and success rate of the passing rows (the first
-    ``n_passing``) and of the failing rows."""
+def _force_closure_rates(labels: Any, n_passing: int) -> dict[str, dict[str, Any]]:
+    """Of the passing rows (the first ``n_passing``) and of the failing rows: pairs, mean
+    success probability at both levels (over all pairs), uncertain pairs, and the nominal
+    trials' success rate over the valid ones."""
     rates = {}
-    n = results.n
+    n = labels.n
     for name, rows in (("passing", slice(0, n_passing)), ("failing", slice(n_passing, n))):
-        part = results.select(np.arange(n)[rows])
-        valid = int(part.valid.sum())
+        part = labels.select(np.arange(n)[rows])
+        valid = int(part.nominal.valid.sum())
         rates[name] = {
             "pairs": part.n,
+            "p_full": float(part.p_success.mean()) if part.n else None,
+            "p_gravity": float(part.p_gravity.mean()) if part.n else None,
+            "uncertain": int(part.uncertain().sum()),
             "valid": valid,
-            "success_rate": float(part.success.sum() / valid) if valid else None,
+            "nominal_success_rate": (float(part.nominal.success.sum() / valid) if valid else None),
         }
     return rates
 
 
 def _run_payload(
-    file: Path, object_id: str, results: Any, n_passing: int, hits: dict[str, int]
+    file: Path, object_id: str, labels: Any, n_passing: int, hits: dict[str, int]
 ) -> dict[str, Any]:
     """The JSON report of ``dg16m sim run`` (machine-readable: full precision, NaN as null)."""
     return {
         "file": str(file),
         "object": object_id,
-        "summary": _finite(results.summary()),
-        "invalid_reasons": results.invalid_reasons(),
+        "perturbation": labels.spec.to_dict(),
+        "summary": _finite(labels.nominal.summary()),
+        "invalid_reasons": labels.nominal.invalid_reasons(),
         "open_hand_inside": hits,
-        "force_closure": _force_closure_rates(results, n_passing),
+        "force_closure": _force_closure_rates(labels, n_passing),
+        "p_success": labels.p_success.tolist(),
+        "p_gravity": labels.p_gravity.tolist(),
     }
 
 
 def _run(args: argparse.Namespace) -> int:
     from dataset_gen.io import read_dg16m
     from dg16m_env.benchmark import choose_file_pairs, file_gripper, file_poses
+    from dg16m_env.labels import PerturbationSpec, success_probability
     from dg16m_env.scene import compile_scene
-    from dg16m_env.trial import run_trials
 
     if args.limit is not None and args.limit < 1:
         raise SimCommandError(f"--limit: expected an integer >= 1, found {args.limit}")
+    defaults = PerturbationSpec()
+    spec = PerturbationSpec(
+        n_perturbations=(
+            defaults.n_perturbations if args.perturbations is None else args.perturbations
+        ),
+        seed=args.perturbation_seed,
+    )
     data = read_dg16m(args.file)
     rng = np.random.default_rng(args.seed)
     passing, failing = choose_file_pairs(data, args.limit, args.limit, rng, fill=False)
@@ -536,13 +600,15 @@ def _run(args: argparse.Namespace) -> int:
     obj, parts = _grasp_object(args, data.object_scale)
     scene = compile_scene(obj, parts=parts)
     poses = file_poses(data, rows, args.gripper)
-    results = run_trials(scene, poses, progress=not args.json and sys.stderr.isatty())
-    hits = _open_hand_hits(scene, poses, results)
+    labels = success_probability(
+        scene, poses, spec=spec, progress=not args.json and sys.stderr.isatty()
+    )
+    hits = _open_hand_hits(scene, poses, labels.nominal)
     if args.json:
-        payload = _run_payload(args.file, obj.object_id, results, passing.size, hits)
+        payload = _run_payload(args.file, obj.object_id, labels, passing.size, hits)
         print(json.dumps(payload, indent=2))
         return 0
-    lines = _sim_run_report(args.file, obj.object_id, results, passing.size, hits)
+    lines = _sim_run_report(args.file, obj.object_id, labels, passing.size, hits)
     if hits:
         lines += _penetration_advice(args, file_gripper(data, args.gripper))
     print("\n".join(lines))

@@ -15,14 +15,16 @@ One trial, for one dual grasp (two hand poses in the object frame):
    -z`` (world = initial object frame), then a torque of ``disturbance_force_fraction * m g *
    disturbance_torque_arm`` about the same six directions.
 
-The hands never move (they stand for arms holding their pose). **Success** when, at every step
-after the fingers closed, the object moves less than :attr:`TrialProtocol.max_displacement` at
-each hand's grasp centre (slip relative to the hands) and turns less than
-:attr:`TrialProtocol.max_rotation_deg`, both measured from its pose at the end of *close*
-(and within the same bounds of its initial pose during *close*). The first step outside the
-bounds names the failing phase. A trial whose state turns non-finite or whose object moves faster
-than :attr:`TrialProtocol.max_speed` is ``UNSTABLE`` (never seen with the default settings; it is
-reported, not hidden); :attr:`TrialResults.ejected` tells the second cause from the first.
+The hands never move (they stand for arms holding their pose). **Success** when each hand
+touches the object at the end of *close* (at least :attr:`TrialProtocol.min_contacts_after_close`
+contacts; benchmark protocol v2) and, at every step after the fingers closed, the object moves
+less than :attr:`TrialProtocol.max_displacement` at each hand's grasp centre (slip relative to
+the hands) and turns less than :attr:`TrialProtocol.max_rotation_deg`, both measured from its pose
+at the end of *close* (and within the same bounds of its initial pose during *close*). The first
+step outside the bounds (or the end of *close* without contact) names the failing phase. A trial
+whose state turns non-finite or whose object moves faster than :attr:`TrialProtocol.max_speed` is
+``UNSTABLE`` (never seen with the default settings; it is reported, not hidden);
+:attr:`TrialResults.ejected` tells the second cause from the first.
 Penetration is the deepest object contact while the object is held
 (before it first leaves the bounds; once it slips out, fingers closing on its edges mean nothing).
 
@@ -31,9 +33,14 @@ bounds by :meth:`TrialProtocol.out_of_bounds`; the step-by-step replay
 (:mod:`dg16m_env.replay`) uses the same two.
 
 Every trial of one object shares one compiled model; trials run in batches through
-``mujoco.rollout`` (single thread per process). On one machine results are bit-for-bit
-reproducible (any batch size, worker count or backend); on another CPU MuJoCo's floating-point
-results can differ in the last bits, and after contact chaos by more (see BENCHMARKS.md).
+``mujoco.rollout`` (single thread per process), one rollout call per phase
+(:func:`trial_segments`): a trial that failed in a phase is not simulated further, since its
+verdict at both levels of the benchmark (held under gravity, held through everything) is then
+certain. Each rollout call starts the solver without a warm start; :func:`simulate` and the
+step-by-step replay restart it at the same steps, so they reproduce ``run_trials`` bit for bit.
+On one machine results are bit-for-bit reproducible (any batch size, worker count or backend); on
+another CPU MuJoCo's floating-point results can differ in the last bits, and after contact chaos
+by more (see BENCHMARKS.md).
 """
 
 from __future__ import annotations
@@ -125,6 +132,9 @@ class TrialProtocol:
         invalid_penetration: an open hand deeper than this in the object makes the trial
             invalid (m).
         max_speed: an object faster than this is a simulation failure (m/s).
+        min_contacts_after_close: each hand must touch the object with at least this many
+            contacts at the end of *close*, or the trial fails in *close* (0 turns the
+            requirement off; benchmark protocol v2).
         batch_size: trials per ``mujoco.rollout`` call (memory vs. overhead).
     """
 
@@ -139,13 +149,14 @@ class TrialProtocol:
     max_rotation_deg: float = 10.0
     invalid_penetration: float = 5e-4
     max_speed: float = 50.0
+    min_contacts_after_close: int = 1
     batch_size: int = 64
 
     def __post_init__(self) -> None:
         check_fields(
             self,
             error=TrialError,
-            integers={"batch_size": 1},
+            integers={"batch_size": 1, "min_contacts_after_close": 0},
             zero_allowed=("disturbance_force_fraction", "disturbance_torque_arm"),
         )
 
@@ -435,10 +446,6 @@ class Schedule:
     def nstep(self) -> int:
         return int(self.phase.size)
 
-    def head(self, nstep: int) -> Schedule:
-        """The first ``nstep`` steps."""
-        return Schedule(self.phase[:nstep], self.wrench[:nstep], self.close_end)
-
 
 def schedule(scene: Scene, protocol: TrialProtocol) -> Schedule:
     """The step-by-step phases and loads of a trial (see the module docstring)."""
@@ -522,7 +529,11 @@ def initial_state(scene: Scene) -> np.ndarray:
 def simulate(
     scene: Scene, grasps: np.ndarray, protocol: TrialProtocol | None = None
 ) -> tuple[np.ndarray, np.ndarray, Schedule]:
-    """Roll out full trials (no validity check) and return their trajectories.
+    """Roll out full trials (no validity check, no early exit) and return their trajectories.
+
+    The rollout restarts at every phase (:func:`trial_segments`) exactly as :func:`run_trials`
+    does, so the trajectories are bit for bit the ones :func:`run_trials` judged (up to the
+    step where it stopped a failed trial).
 
     Returns:
         states: (N, T, S) full physics states after each step (``mjSTATE_FULLPHYSICS``).
@@ -534,14 +545,21 @@ def simulate(
     plan = schedule(scene, protocol)
     controls = trial_controls(scene, grasps, plan)
     data = mujoco.MjData(scene.model)
-    states, sensors = rollout.rollout(
-        scene.model,
-        data,
-        initial_state(scene)[None],
-        controls,
-        control_spec=CONTROL_SPEC,
-        nstep=plan.nstep,
-    )
+    n = len(grasps)
+    start = initial_state(scene)
+    states = np.empty((n, plan.nstep, start.size))
+    sensors = np.empty((n, plan.nstep, scene.model.nsensordata))
+    state = np.repeat(start[None], n, axis=0)
+    for seg in trial_segments(plan):
+        states[:, seg], sensors[:, seg] = rollout.rollout(
+            scene.model,
+            data,
+            state,
+            controls[:, seg],
+            control_spec=CONTROL_SPEC,
+            nstep=seg.stop - seg.start,
+        )
+        state = states[:, seg.stop - 1]
     return states, sensors, plan
 
 
@@ -559,6 +577,40 @@ def rotation_deg(quat: np.ndarray, ref: np.ndarray) -> np.ndarray:
 _IDENTITY_QUAT = np.array([1.0, 0.0, 0.0, 0.0])
 
 
+def motion_from(
+    pos: np.ndarray,
+    quat: np.ndarray,
+    anchors: np.ndarray,
+    ref_pos: np.ndarray | None = None,
+    ref_quat: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Slip at the anchors and rotation of the object, measured from a reference pose.
+
+    Args:
+        pos: (N, T, 3) object positions, world = initial object frame (m).
+        quat: (N, T, 4) object orientations (w, x, y, z).
+        anchors: (N, K, 3) world points where slip is measured: slip is the displacement of the
+            material point that sat at an anchor when the object was at the reference pose.
+        ref_pos: (N, 3) reference position (default: the origin).
+        ref_quat: (N, 4) reference orientation (default: identity).
+
+    Returns:
+        displacement: (N, T) the largest slip over the K anchors (m).
+        rotation: (N, T) rotation from the reference orientation (degrees).
+    """
+    rot = quat_to_matrix(quat)  # (N, T, 3, 3)
+    if ref_pos is None or ref_quat is None:
+        body_points = anchors
+        rotation = rotation_deg(quat, _IDENTITY_QUAT)
+    else:
+        ref_rot = quat_to_matrix(ref_quat)
+        body_points = np.einsum("nji,nkj->nki", ref_rot, anchors - ref_pos[:, None])
+        rotation = rotation_deg(quat, ref_quat[:, None])
+    points = np.einsum("ntij,nkj->ntki", rot, body_points) + pos[:, :, None]
+    moved = points - anchors[:, None]
+    return np.linalg.norm(moved, axis=-1).max(axis=-1), rotation
+
+
 def object_motion(
     pos: np.ndarray, quat: np.ndarray, anchors: np.ndarray, close: int
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -566,8 +618,8 @@ def object_motion(
 
     The first ``close`` states belong to the *close* phase and are measured from the object's
     initial pose (at the origin, identity orientation); later states from its pose in state
-    ``close - 1`` (the end of *close*), i.e. relative to where the hands hold it. Slip is the
-    displacement of the material point that sat at an anchor.
+    ``close - 1`` (the end of *close*), i.e. relative to where the hands hold it
+    (:func:`motion_from` with each reference).
 
     Args:
         pos: (N, T, 3) object positions, world = initial object frame (m).
@@ -580,19 +632,13 @@ def object_motion(
         displacement: (N, T) the largest slip over the K anchors (m).
         rotation: (N, T) rotation (degrees).
     """
-    rot = quat_to_matrix(quat)  # (N, T, 3, 3)
-    during = np.einsum("ntij,nkj->ntki", rot[:, :close], anchors) + pos[:, :close, None]
-    rotations = [rotation_deg(quat[:, :close], _IDENTITY_QUAT)]
-    points = [during]
-    if pos.shape[1] > close:  # material points at the anchors at the end of close
-        ref_rot, ref_pos = rot[:, close - 1], pos[:, close - 1]
-        body_points = np.einsum("nji,nkj->nki", ref_rot, anchors - ref_pos[:, None])
-        points.append(
-            np.einsum("ntij,nkj->ntki", rot[:, close:], body_points) + pos[:, close:, None]
-        )
-        rotations.append(rotation_deg(quat[:, close:], quat[:, close - 1 : close]))
-    moved = np.concatenate(points, axis=1) - anchors[:, None]
-    return np.linalg.norm(moved, axis=-1).max(axis=-1), np.concatenate(rotations, axis=1)
+    slip, rotation = motion_from(pos[:, :close], quat[:, :close], anchors)
+    if pos.shape[1] <= close:
+        return slip, rotation
+    later = motion_from(
+        pos[:, close:], quat[:, close:], anchors, pos[:, close - 1], quat[:, close - 1]
+    )
+    return np.concatenate([slip, later[0]], axis=1), np.concatenate([rotation, later[1]], axis=1)
 
 
 def grasp_centres(scene: Scene, grasps: np.ndarray) -> np.ndarray:
@@ -625,19 +671,139 @@ def object_states(scene: Scene, states: np.ndarray) -> tuple[np.ndarray, np.ndar
     return states[..., q0 : q0 + 3], states[..., q0 + 3 : q0 + 7], states[..., v0 : v0 + 3]
 
 
-def _broken_steps(
-    scene: Scene, states: np.ndarray, vel: np.ndarray, protocol: TrialProtocol
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(N, T) masks: finite states, broken steps (non-finite, stalled or too fast), too fast."""
+@dataclass
+class StepMeasures:
+    """What the judge needs from a trajectory, step by step ((N, T) unless noted; steps never
+    simulated hold NaN / False / 0).
+
+    Attributes:
+        displacement: slip at the hands' grasp centres (m), measured like :func:`object_motion`.
+        rotation: rotation of the object (degrees), measured like :func:`object_motion`.
+        finite: the state is finite.
+        broken: non-finite, stalled (time does not advance: ``mujoco.rollout`` stopped at a
+            simulation warning) or faster than ``max_speed``.
+        fast: the object moves faster than ``max_speed`` (m/s).
+        depth: deepest object contact penetration (m, >= 0).
+        hand_contacts: (N, T, 2) contacts between the object and each hand.
+    """
+
+    displacement: np.ndarray
+    rotation: np.ndarray
+    finite: np.ndarray
+    broken: np.ndarray
+    fast: np.ndarray
+    depth: np.ndarray
+    hand_contacts: np.ndarray
+
+    @classmethod
+    def empty(cls, n: int, nstep: int) -> StepMeasures:
+        return cls(
+            displacement=np.full((n, nstep), np.nan),
+            rotation=np.full((n, nstep), np.nan),
+            finite=np.zeros((n, nstep), dtype=bool),
+            broken=np.zeros((n, nstep), dtype=bool),
+            fast=np.zeros((n, nstep), dtype=bool),
+            depth=np.zeros((n, nstep)),
+            hand_contacts=np.zeros((n, nstep, 2)),
+        )
+
+    def store(self, rows: np.ndarray | slice, steps: slice, other: StepMeasures) -> None:
+        """Write ``other`` (measures of ``rows`` over ``steps``) into these arrays."""
+        for name in ("displacement", "rotation", "finite", "broken", "fast", "depth"):
+            getattr(self, name)[rows, steps] = getattr(other, name)
+        self.hand_contacts[rows, steps] = other.hand_contacts
+
+
+def measure_steps(
+    scene: Scene,
+    states: np.ndarray,
+    sensors: np.ndarray,
+    first_step: int,
+    protocol: TrialProtocol,
+    anchors: np.ndarray,
+    reference: np.ndarray | None = None,
+) -> StepMeasures:
+    """Measure a stretch of trajectories.
+
+    Args:
+        states: (N, W, S) full physics states after steps ``first_step .. first_step + W - 1``.
+        sensors: (N, W, D) sensor data after the same steps.
+        first_step: index of the first step (0 = the first step of the trial).
+        protocol: ``max_speed``.
+        anchors: (N, K, 3) where slip is measured (:func:`grasp_centres`).
+        reference: (N, S) the state slip and rotation are measured from (the state at the end of
+            *close*); ``None`` for steps of *close* (measured from the initial pose).
+    """
+    pos, quat, vel = object_states(scene, states)
+    if reference is None:
+        displacement, rotation = motion_from(pos, quat, anchors)
+    else:
+        ref_pos, ref_quat, _ = object_states(scene, reference)
+        displacement, rotation = motion_from(pos, quat, anchors, ref_pos, ref_quat)
     finite = np.isfinite(states).all(axis=2)
-    # mujoco.rollout stops a trajectory at a simulation warning and repeats its last state (and
-    # mj_step resets diverged data): time that does not advance step by step marks it broken.
     timestep = scene.model.opt.timestep
-    expected_time = timestep * np.arange(1, states.shape[1] + 1)
+    expected_time = timestep * np.arange(first_step + 1, first_step + states.shape[1] + 1)
+    count_at, dist_at, hand_at = sensor_slices(scene)
     with np.errstate(invalid="ignore"):
         stalled = np.abs(states[:, :, 0] - expected_time) > 0.5 * timestep
         fast = np.linalg.norm(vel, axis=-1) > protocol.max_speed
-    return finite, ~finite | stalled | fast, fast
+        depth = np.where(sensors[:, :, count_at] > 0, -sensors[:, :, dist_at], 0.0)
+    return StepMeasures(
+        displacement=displacement,
+        rotation=rotation,
+        finite=finite,
+        broken=~finite | stalled | fast,
+        fast=fast,
+        depth=depth,
+        hand_contacts=sensors[:, :, hand_at],
+    )
+
+
+def out_steps(
+    measures: StepMeasures, first_step: int, plan: Schedule, protocol: TrialProtocol
+) -> np.ndarray:
+    """(N, W) bool: steps ``first_step ..`` where the trial leaves the protocol: slip or rotation
+    out of bounds, a broken state, or (at the last step of *close*) a hand with fewer than
+    :attr:`TrialProtocol.min_contacts_after_close` contacts on the object."""
+    out = protocol.out_of_bounds(measures.displacement, measures.rotation) | measures.broken
+    at = plan.close_end - 1 - first_step
+    if protocol.min_contacts_after_close > 0 and 0 <= at < out.shape[1]:
+        few = (measures.hand_contacts[:, at] < protocol.min_contacts_after_close).any(axis=1)
+        out[:, at] |= few
+    return out
+
+
+def judge(measures: StepMeasures, plan: Schedule, protocol: TrialProtocol) -> TrialResults:
+    """Verdicts from the measures of whole trials (steps after the end of a failing phase may
+    be missing)."""
+    n, steps = measures.displacement.shape
+    out = out_steps(measures, 0, plan, protocol)
+    first_out = np.where(out.any(axis=1), out.argmax(axis=1), steps)
+    phase_end = np.cumsum(np.bincount(plan.phase, minlength=len(PHASES)))
+    results = TrialResults.empty(n, protocol)
+    for i in range(n):
+        failed = first_out[i] < steps
+        phase = int(plan.phase[first_out[i]]) if failed else -1
+        last = int(phase_end[phase]) if failed else steps
+        window = slice(0, last)
+        unstable = bool(measures.broken[i, window].any())
+        results.status[i] = (
+            TrialStatus.UNSTABLE
+            if unstable
+            else (TrialStatus.FAILED if failed else TrialStatus.SUCCESS)
+        )
+        results.failing_phase[i] = phase
+        ok = measures.finite[i, window]
+        results.max_displacement[i] = np.max(np.where(ok, measures.displacement[i, window], np.inf))
+        results.max_rotation_deg[i] = np.max(np.where(ok, measures.rotation[i, window], np.inf))
+        held = slice(0, max(1, int(first_out[i])))  # while the object is held (within bounds)
+        results.max_penetration[i] = (
+            np.inf if unstable else max(0.0, float(np.max(measures.depth[i, held])))
+        )
+        results.contacts_after_close[i] = measures.hand_contacts[i, plan.close_end - 1]
+        results.contacts_final[i] = measures.hand_contacts[i, last - 1]
+        results.ejected[i] = bool(measures.fast[i, window].any())
+    return results
 
 
 def analyse(
@@ -659,42 +825,29 @@ def analyse(
             centres, :func:`grasp_centres`); default the object's origin.
     """
     n = len(states)
-    if anchors is None:  # the object's origin
-        anchors = np.zeros((n, 1, 3))
-    pos, quat, vel = object_states(scene, states)
-    displacement, rotation = object_motion(
-        pos, quat, np.asarray(anchors, dtype=np.float64), plan.close_end
+    anchors = np.zeros((n, 1, 3)) if anchors is None else np.asarray(anchors, dtype=np.float64)
+    close = plan.close_end
+    measures = StepMeasures.empty(n, states.shape[1])
+    measures.store(
+        slice(None),
+        slice(0, close),
+        measure_steps(scene, states[:, :close], sensors[:, :close], 0, protocol, anchors),
     )
-    finite, broken, fast = _broken_steps(scene, states, vel, protocol)
-    out = protocol.out_of_bounds(displacement, rotation) | broken
-    steps = plan.nstep
-    first_out = np.where(out.any(axis=1), out.argmax(axis=1), steps)
-    count_at, dist_at, hand_at = sensor_slices(scene)
-    with np.errstate(invalid="ignore"):
-        depth = np.where(sensors[:, :, count_at] > 0, -sensors[:, :, dist_at], 0.0)
-    phase_end = np.cumsum(np.bincount(plan.phase, minlength=len(PHASES)))
-    results = TrialResults.empty(n, protocol)
-    for i in range(n):
-        failed = first_out[i] < steps
-        phase = int(plan.phase[first_out[i]]) if failed else -1
-        last = int(phase_end[phase]) if failed else steps
-        window = slice(0, last)
-        unstable = bool(broken[i, window].any())
-        results.status[i] = (
-            TrialStatus.UNSTABLE
-            if unstable
-            else (TrialStatus.FAILED if failed else TrialStatus.SUCCESS)
+    if states.shape[1] > close:
+        measures.store(
+            slice(None),
+            slice(close, None),
+            measure_steps(
+                scene,
+                states[:, close:],
+                sensors[:, close:],
+                close,
+                protocol,
+                anchors,
+                states[:, close - 1],
+            ),
         )
-        results.failing_phase[i] = phase
-        ok = finite[i, window]
-        results.max_displacement[i] = np.max(np.where(ok, displacement[i, window], np.inf))
-        results.max_rotation_deg[i] = np.max(np.where(ok, rotation[i, window], np.inf))
-        held = slice(0, max(1, int(first_out[i])))  # while the object is held (within bounds)
-        results.max_penetration[i] = np.inf if unstable else max(0.0, float(np.max(depth[i, held])))
-        results.contacts_after_close[i] = sensors[i, plan.close_end - 1, hand_at]
-        results.contacts_final[i] = sensors[i, last - 1, hand_at]
-        results.ejected[i] = bool(fast[i, window].any())
-    return results
+    return judge(measures, plan, protocol)
 
 
 def _batches(indices: np.ndarray, size: int) -> Iterator[np.ndarray]:
@@ -708,6 +861,7 @@ def run_trials(
     protocol: TrialProtocol | None = None,
     *,
     progress: bool = False,
+    early_exit: bool = True,
 ) -> TrialResults:
     """Run the trial protocol on N dual grasps of one object.
 
@@ -716,6 +870,8 @@ def run_trials(
         grasps: (N, 2, 4, 4) hand poses, gripper frame -> object frame (m).
         protocol: timing, loads and thresholds.
         progress: show a progress bar over batches.
+        early_exit: stop simulating a trial at the end of the phase where it failed (its verdict
+            is then certain; ``False`` runs every trial to the end, for checking that claim).
 
     Returns:
         :class:`TrialResults` in the order of ``grasps``.
@@ -742,7 +898,7 @@ def run_trials(
 
         iterator = tqdm(batches, unit="batch", desc=f"trials {scene.object_id}")
     for rows in iterator:
-        batch = _run_batch(scene, grasps[rows], plan, protocol, data)
+        batch = _run_batch(scene, grasps[rows], plan, protocol, data, early_exit)
         for name in TrialResults.ARRAY_FIELDS:
             if name != "invalid_reason":
                 getattr(results, name)[rows] = getattr(batch, name)
@@ -755,17 +911,18 @@ def _run_batch(
     plan: Schedule,
     protocol: TrialProtocol,
     data: mujoco.MjData,
+    early_exit: bool = True,
 ) -> TrialResults:
-    """Roll out and judge one batch of valid trials, segment by segment (:func:`trial_segments`);
-    trials already out of bounds after a segment are not run further."""
-    start = initial_state(scene)[None]
+    """Roll out and judge one batch of valid trials, phase by phase (:func:`trial_segments`);
+    a trial that left the protocol in a phase is not run further (its verdict is certain).
+    Each phase is measured once, as it is rolled out, and the judge reads those measures."""
     controls = trial_controls(scene, grasps, plan)
     anchors = grasp_centres(scene, grasps)
     n = len(grasps)
-    states = np.full((n, plan.nstep, start.shape[1]), np.nan)
-    sensors = np.full((n, plan.nstep, scene.model.nsensordata), np.nan)
+    state = np.repeat(initial_state(scene)[None], n, axis=0)
+    reference = None  # the state at the end of close, once it is simulated
+    measures = StepMeasures.empty(n, plan.nstep)
     active = np.arange(n)
-    state = np.repeat(start, n, axis=0)
     for seg in trial_segments(plan):
         seg_states, seg_sensors = rollout.rollout(
             scene.model,
@@ -775,31 +932,26 @@ def _run_batch(
             control_spec=CONTROL_SPEC,
             nstep=seg.stop - seg.start,
         )
-        states[active, seg] = seg_states
-        sensors[active, seg] = seg_sensors
         state[active] = seg_states[:, -1]
-        # Trials already out of bounds stop here (their later steps stay NaN, unused).
-        partial = analyse(
-            scene,
-            states[active, : seg.stop],
-            sensors[active, : seg.stop],
-            plan.head(seg.stop),
-            protocol,
-            anchors[active],
+        ref = None if reference is None else reference[active]
+        seg_measures = measure_steps(
+            scene, seg_states, seg_sensors, seg.start, protocol, anchors[active], ref
         )
-        active = active[partial.status == TrialStatus.SUCCESS]
-        if active.size == 0:
-            break
-    return analyse(scene, states, sensors, plan, protocol, anchors)
+        measures.store(active, seg, seg_measures)
+        if seg.stop == plan.close_end:
+            reference = state.copy()
+        if early_exit:
+            left = out_steps(seg_measures, seg.start, plan, protocol).any(axis=1)
+            active = active[~left]
+            if active.size == 0:
+                break
+    return judge(measures, plan, protocol)
 
 
 def trial_segments(plan: Schedule) -> list[slice]:
-    """Step ranges run by one ``rollout`` call each; failed trials stop between them: close and
-    gravity, the six forces, the six torques."""
-    bounds = [
-        0,
-        int(np.searchsorted(plan.phase, 2)),
-        int(np.searchsorted(plan.phase, 8)),
-        plan.nstep,
-    ]
-    return [slice(a, b) for a, b in itertools.pairwise(bounds) if b > a]
+    """Step ranges run by one ``mujoco.rollout`` call each: one per phase. A failed trial stops
+    at the end of its failing phase. The rollout restarts the solver's warm start
+    (``qacc_warmstart``) at each segment; that is part of the trial's definition
+    (:func:`simulate` and the step-by-step replay restart it at the same steps)."""
+    bounds = [0, *np.flatnonzero(np.diff(plan.phase)) + 1, plan.nstep]
+    return [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds) if b > a]

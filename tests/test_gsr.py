@@ -10,6 +10,7 @@ pytest.importorskip("mujoco")
 from dataset_gen.sources import ObjectSource, procedural_sources
 from dg16m_env.benchmark import Benchmark, read_benchmark
 from dg16m_env.gsr import GraspJob, GsrError, evaluate_objects, jobs_from_mapping
+from dg16m_env.labels import PerturbationSpec
 from dg16m_env.trial import TrialResults
 
 
@@ -22,7 +23,14 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[GraspJob], Ben
     )
 
     out = tmp_path_factory.mktemp("gsr")
-    params = BenchmarkParameters(n_grasps=50, n_passing=4, n_failing=3, n_random=2)
+    params = BenchmarkParameters(
+        n_grasps=50,
+        n_passing=4,
+        n_failing=3,
+        n_random=2,
+        n_farthest=2,
+        perturbation=PerturbationSpec(n_perturbations=1),
+    )
     bench = read_benchmark(
         build_benchmark(procedural_benchmark_sources(2), out, params, progress=False)
     )
@@ -42,17 +50,21 @@ def test_results_match_the_benchmark_labels_for_any_worker_count(
     built: tuple[list[GraspJob], Benchmark],
 ) -> None:
     jobs, bench = built
-    one = evaluate_objects(jobs)
-    two = evaluate_objects(jobs, workers=2)
+    spec = bench.labels.spec
+    one = evaluate_objects(jobs, spec=spec)
+    two = evaluate_objects(jobs, spec=spec, workers=2)
     assert list(one.results) == sorted(j.object_id for j in jobs)
     for object_id, result in one.results.items():
         rows = bench.object_rows(object_id)
-        np.testing.assert_array_equal(result.status, bench.trials.status[rows])
+        # The benchmark's per-row seeds are (spec.seed, object id): the same labels.
+        np.testing.assert_array_equal(result.status, bench.labels.status[rows])
+        np.testing.assert_array_equal(result.p_success, bench.p()[rows])
         for name in TrialResults.ARRAY_FIELDS:
             np.testing.assert_array_equal(
-                getattr(result, name), getattr(two.results[object_id], name)
+                getattr(result.nominal, name), getattr(two.results[object_id].nominal, name)
             )
-    assert 0.0 <= one.success_rate() <= 1.0
+    assert one.success_rate() == pytest.approx(float(bench.p().mean()))
+    assert 0.0 <= one.success_rate() <= one.success_rate("gravity") <= 1.0
     assert one.summary()["objects"] == 2
 
 
@@ -60,9 +72,15 @@ def test_a_broken_object_fails_alone(jobs: list[GraspJob], tmp_path) -> None:
     broken = tmp_path / "broken.obj"
     broken.write_text("v 0 0 0\nf 1 1 1\n")
     bad = GraspJob(ObjectSource("broken", mesh=broken), jobs[0].poses)
-    result = evaluate_objects([*jobs, bad])
+    result = evaluate_objects([*jobs, bad], spec=PerturbationSpec(n_perturbations=1))
     assert "broken" in result.errors
     assert set(result.results) == {j.object_id for j in jobs}
+    # The broken object's grasps stay in the denominator, as failures.
+    won = sum(float(r.p_success.sum()) for r in result.results.values())
+    total = sum(len(j.poses) for j in jobs) + len(bad.poses)
+    assert result.submitted["broken"] == len(bad.poses)
+    assert result.success_rate() == pytest.approx(won / total)
+    assert result.success_rate_valid() >= result.success_rate()
 
 
 def test_duplicate_ids_and_missing_sources_are_rejected(jobs: list[GraspJob]) -> None:

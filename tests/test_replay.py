@@ -26,6 +26,7 @@ from dg16m_env.benchmark import (
     procedural_benchmark_sources,
     read_benchmark,
 )
+from dg16m_env.labels import PerturbationSpec
 from dg16m_env.replay import (
     RenderError,
     ReplayError,
@@ -45,7 +46,14 @@ from dg16m_env.trial import TrialStatus, run_trials, simulate
 @pytest.fixture(scope="module")
 def bench_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("bench")
-    params = BenchmarkParameters(n_grasps=40, n_passing=3, n_failing=2, n_random=2)
+    params = BenchmarkParameters(
+        n_grasps=40,
+        n_passing=3,
+        n_failing=2,
+        n_random=2,
+        n_farthest=2,
+        perturbation=PerturbationSpec(n_perturbations=1),
+    )
     return build_benchmark(procedural_benchmark_sources(1), out, params, progress=False)
 
 
@@ -240,12 +248,23 @@ def test_cli_replay_writes_a_strip(
     argv = ["sim", "replay", str(bench_path), "--row", str(row), "--out", str(out)]
     assert dataset_gen.cli.main([*argv, "--frames", "3", "--size", "96x72"]) == 0
     printed = capsys.readouterr().out
-    assert "stored:" in printed
+    assert "stored nominal trial:" in printed
+    assert "success probability:" in printed
     assert "replayed:" in printed
     assert "note:" not in printed
     with Image.open(out) as image:
         assert image.format == "PNG"
         assert image.width >= 3 * 96
+    # A perturbed trial, rebuilt from the stored seed, replays to its stored verdict.
+    last = bench.labels.spec.trials - 1
+    assert dataset_gen.cli.main([*argv, "--trial", str(last), "--frames", "2"]) == 0
+    printed = capsys.readouterr().out
+    assert f"stored perturbed trial {last}:" in printed
+    assert "note:" not in printed
+    assert dataset_gen.cli.main([*argv, "--trial", str(last + 1)]) == 2
+    assert (
+        "--trial: expected a trial (0 nominal, 1..K perturbed) in [0, " in capsys.readouterr().err
+    )
 
 
 @pytest.mark.skipif(not EMBEDDED_BENCHMARK.is_file(), reason="no shipped benchmark file")
@@ -346,7 +365,14 @@ def test_cli_run_reports_passing_and_failing(
         v["pairs"] for v in payload["force_closure"].values()
     )
     assert set(payload["force_closure"]) == {"passing", "failing"}
+    assert payload["perturbation"]["n_perturbations"] == 4
+    assert len(payload["p_success"]) == payload["summary"]["trials"]
+    assert all(g >= f for g, f in zip(payload["p_gravity"], payload["p_success"], strict=True))
     assert dataset_gen.cli.main([*argv[:5], "--limit", "0"]) == 2
+    # --perturbations 0: the nominal trial alone, so every p is 0 or 1.
+    assert dataset_gen.cli.main([*argv, "--perturbations", "0"]) == 0
+    alone = json.loads(capsys.readouterr().out)
+    assert set(alone["p_success"]) <= {0.0, 1.0}
 
 
 @pytest.fixture(scope="module")
