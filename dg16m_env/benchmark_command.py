@@ -52,7 +52,7 @@ def register(subparsers: Any) -> None:
             "For each object: sample single-arm grasps, pair them, check force closure, draw "
             "the four arms (force-closure passing, failing, random and farthest pairs; about "
             "100), and label each pair by its success probability p over K + 1 MuJoCo trials "
-            "(the nominal hand poses and K = 4 perturbed ones, each hand moved 1 mm and turned "
+            "(the nominal hand poses and K = 8 perturbed ones, each hand moved 1 mm and turned "
             "1 degree; a trial: close, gravity, 12 disturbances; held when the object stays "
             "within 2 cm and 10 degrees of the hands). Writes OUT/objects/<id>.h5, "
             "OUT/manifest.json and OUT/benchmark.h5 (schema version 2). Results do not depend "

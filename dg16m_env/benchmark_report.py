@@ -449,10 +449,11 @@ def _nominal_lines(report: Mapping[str, Any]) -> list[str]:
 
 def _family_lines(report: Mapping[str, Any]) -> list[str]:
     families = report["by_family"]
+    width = max([len("family"), *(len(name) for name in families)])
     lines = [
         "",
         "by family: GSR (mean p, no CI) of all pairs, fc_pass pairs and random pairs",
-        f"{'family':12s} {'objs':>4s} {'pairs':>5s}  "
+        f"{'family':{width}s} {'objs':>4s} {'pairs':>5s}  "
         + "  ".join(f"{level + ': all':>13s} {'fc_pass':>7s} {'random':>7s}" for level in LEVELS),
     ]
     for family, row in families.items():
@@ -461,7 +462,7 @@ def _family_lines(report: Mapping[str, Any]) -> list[str]:
             f"{percent(row[level]['gsr_random']):>7s}"
             for level in LEVELS
         )
-        lines.append(f"{family:12s} {row['objects']:4d} {row['pairs']:5d}  {cells}")
+        lines.append(f"{family:{width}s} {row['objects']:4d} {row['pairs']:5d}  {cells}")
     return lines
 
 

@@ -71,7 +71,7 @@ class PerturbationSpec:
         seed: global seed; each row's own seed derives from it (:func:`row_seeds`).
     """
 
-    n_perturbations: int = 4
+    n_perturbations: int = 8
     translation: float = 0.001
     rotation_deg: float = 1.0
     seed: int = 0

@@ -196,7 +196,7 @@ def register(subparsers: Any) -> None:
         default=None,
         metavar="K",
         help="perturbed trials per pair besides the nominal one, for its success probability "
-        "(benchmark protocol v2; default: 4, the benchmark's; 0: the nominal trial only)",
+        "(benchmark protocol v2; default: 8, the benchmark's; 0: the nominal trial only)",
     )
     run.add_argument(
         "--perturbation-seed", type=int, default=0, help="seed of the perturbations (default 0)"

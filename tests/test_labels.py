@@ -651,7 +651,11 @@ def test_perturbation_spec_round_trip_and_unknown_keys() -> None:
     spec = PerturbationSpec(n_perturbations=2, translation=0.002, rotation_deg=0.5, seed=3)
     assert PerturbationSpec.from_dict(spec.to_dict()) == spec
     assert PerturbationSpec.from_dict({}) == PerturbationSpec()
-    assert PerturbationSpec().trials == 5
+    # The protocol's defaults: d = 1 mm, theta = 1 degree (DESIGN.md), K = 8 (chosen by
+    # measurement, BENCHMARKS.md "Label stability").
+    default = PerturbationSpec()
+    assert (default.n_perturbations, default.translation, default.rotation_deg) == (8, 1e-3, 1.0)
+    assert default.trials == 9
     assert PerturbationSpec(n_perturbations=0, translation=0.0, rotation_deg=0.0).trials == 1
     with pytest.raises(LabelError, match=r"unknown \['k'\]"):
         PerturbationSpec.from_dict({"k": 4})

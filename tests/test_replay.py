@@ -365,7 +365,7 @@ def test_cli_run_reports_passing_and_failing(
         v["pairs"] for v in payload["force_closure"].values()
     )
     assert set(payload["force_closure"]) == {"passing", "failing"}
-    assert payload["perturbation"]["n_perturbations"] == 4
+    assert payload["perturbation"]["n_perturbations"] == PerturbationSpec().n_perturbations
     assert len(payload["p_success"]) == payload["summary"]["trials"]
     assert all(g >= f for g, f in zip(payload["p_gravity"], payload["p_success"], strict=True))
     assert dataset_gen.cli.main([*argv[:5], "--limit", "0"]) == 2
