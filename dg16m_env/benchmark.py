@@ -201,6 +201,18 @@ class BenchmarkParameters:
         out["scene"] = self.scene.to_dict()
         return out
 
+    def force_closure_kwargs(self) -> dict[str, float]:
+        """The force-closure problem of the benchmark's pairs: keyword arguments of
+        :func:`dataset_gen.force_closure.evaluate` (``mass``, ``gravity`` from the protocol,
+        ``mu``, ``f_high``, ``threshold``)."""
+        return {
+            "mass": self.mass,
+            "gravity": self.protocol.gravity,
+            "mu": self.mu,
+            "f_high": self.f_high,
+            "threshold": self.threshold,
+        }
+
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> BenchmarkParameters:
         """The parameters :meth:`to_dict` wrote (a benchmark file's ``metadata["parameters"]``),
@@ -671,13 +683,7 @@ def sampled_pairs(
     """
     grasps = sample_antipodal_grasps(obj, n_grasps=params.n_grasps, mu=params.mu, rng=rng)
     candidates = candidate_pairs(grasps, min_center_distance=params.min_center_distance)
-    fc_kwargs = {
-        "mass": params.mass,
-        "gravity": params.protocol.gravity,
-        "mu": params.mu,
-        "f_high": params.f_high,
-        "threshold": params.threshold,
-    }
+    fc_kwargs = params.force_closure_kwargs()
     verdict = score_pairs(grasps, candidates.pairs, **fc_kwargs)
     cand_points, cand_normals = dual_contacts(grasps, candidates.pairs)
     take_pass = min(params.n_passing, int(np.sum(verdict.passed)))

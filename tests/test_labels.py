@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import trimesh
 
 pytest.importorskip("mujoco")
 
+from planks import DOWN, SIDE, THICKNESS, dual, hand, plank
+
 from dataset_gen.errors import Dg16mError
 from dataset_gen.gripper import PANDA
-from dataset_gen.objects import ConvexPart, GraspObject, make_object
 from dataset_gen.pairing import candidate_pairs, score_pairs
 from dataset_gen.procedural import benchmark_specs
 from dataset_gen.sampling import sample_antipodal_grasps
@@ -40,36 +40,12 @@ from dg16m_env.trial import (
     run_trials,
 )
 
-THICKNESS = 0.04  # m, the plank's square cross-section
-DOWN, SIDE = (0.0, 0.0, -1.0), (0.0, 1.0, 0.0)  # approach directions (object frame)
 CLOSE, GRAVITY = PHASES.index("close"), PHASES.index("gravity")
 
 
 # --------------------------------------------------------------------------------------------
 # Objects and grasps (the plank of test_sim.py)
 # --------------------------------------------------------------------------------------------
-
-
-def plank(length: float, mass: float, object_id: str) -> GraspObject:
-    """A ``length x 0.04 x 0.04`` m box along x, centred at the origin, one exact convex part."""
-    half = (length / 2.0, THICKNESS / 2.0, THICKNESS / 2.0)
-    mesh = trimesh.creation.box(extents=2.0 * np.asarray(half))
-    return make_object(
-        mesh, object_id=object_id, mass=mass, parts=[ConvexPart("box", np.eye(4), half)]
-    )
-
-
-def hand(x: float, closing: str, approach: tuple[float, float, float]) -> np.ndarray:
-    """(4, 4) Panda pose squeezing the plank at ``x`` across its thickness along world
-    ``closing`` ("y": pads on the side faces; "z": pads on the top and bottom faces)."""
-    axis = np.array([0.0, 1.0, 0.0]) if closing == "y" else np.array([0.0, 0.0, 1.0])
-    centre = np.array([x, 0.0, 0.0])
-    half = THICKNESS / 2.0 * axis
-    return PANDA.pose_from_contacts(centre + half, centre - half, np.asarray(approach))
-
-
-def dual(*poses: np.ndarray) -> np.ndarray:
-    return np.stack(poses)
 
 
 # Holds through the whole default protocol (both ends squeezed).
@@ -567,13 +543,8 @@ def test_sampled_arms_follow_their_rules(spec_index: int, shortfall: bool) -> No
 
     candidates = candidate_pairs(grasps, min_center_distance=params.min_center_distance)
     candidate_set = {tuple(p) for p in candidates.pairs.tolist()}
-    fc_kwargs = {
-        "mass": params.mass,
-        "gravity": params.protocol.gravity,
-        "mu": params.mu,
-        "f_high": params.f_high,
-        "threshold": params.threshold,
-    }
+    fc_kwargs = params.force_closure_kwargs()
+    assert fc_kwargs["gravity"] == params.protocol.gravity
     available_pass = int(score_pairs(grasps, candidates.pairs, **fc_kwargs).passed.sum())
 
     # Counts: never above the request; a shortfall of passing pairs is filled with failing ones.

@@ -16,10 +16,11 @@ import trimesh
 pytest.importorskip("mujoco")
 
 import mujoco
+from planks import DOWN, SIDE, dual, hand, plank
 
 from dataset_gen.errors import Dg16mError
 from dataset_gen.gripper import PANDA
-from dataset_gen.objects import ConvexPart, GraspObject, make_object
+from dataset_gen.objects import make_object
 from dg16m_env.scene import Scene, SceneError, SceneParameters, compile_scene
 from dg16m_env.trial import (
     DIRECTIONS,
@@ -36,35 +37,9 @@ from dg16m_env.trial import (
     simulate,
 )
 
-THICKNESS = 0.04  # m, the planks' square cross-section
-DOWN, SIDE = (0.0, 0.0, -1.0), (0.0, 1.0, 0.0)  # approach directions (object frame)
-
-
 # --------------------------------------------------------------------------------------------
 # Objects and grasps
 # --------------------------------------------------------------------------------------------
-
-
-def plank(length: float, mass: float, object_id: str = "plank") -> GraspObject:
-    """A ``length x 0.04 x 0.04`` m box along x, centred at the origin, one exact convex part."""
-    half = (length / 2.0, THICKNESS / 2.0, THICKNESS / 2.0)
-    mesh = trimesh.creation.box(extents=2.0 * np.asarray(half))
-    return make_object(
-        mesh, object_id=object_id, mass=mass, parts=[ConvexPart("box", np.eye(4), half)]
-    )
-
-
-def hand(x: float, closing: str, approach: tuple[float, float, float]) -> np.ndarray:
-    """(4, 4) Panda pose squeezing the plank at ``x`` across its thickness along world ``closing``
-    ("y": horizontal, across the width; "z": vertical, top and bottom faces)."""
-    axis = np.array([0.0, 1.0, 0.0]) if closing == "y" else np.array([0.0, 0.0, 1.0])
-    centre = np.array([x, 0.0, 0.0])
-    half = THICKNESS / 2.0 * axis
-    return PANDA.pose_from_contacts(centre + half, centre - half, np.asarray(approach))
-
-
-def dual(*poses: np.ndarray) -> np.ndarray:
-    return np.stack(poses)
 
 
 @pytest.fixture(scope="module")
