@@ -78,6 +78,14 @@ def register(subparsers: Any) -> None:
     build.add_argument("--backend", choices=("local", "ray"), default="local")
     build.add_argument("--address", default=None, help="Ray address: auto or host:port")
     build.add_argument("--seed", type=int, default=0, help="global seed (default 0)")
+    build.add_argument(
+        "--perturbations",
+        type=int,
+        default=None,
+        metavar="K",
+        help="perturbed trials per pair besides the nominal one (default: 8, the shipped "
+        "benchmark's; fewer is faster and coarser, 0 labels by the nominal trial alone)",
+    )
     build.add_argument("--no-progress", action="store_true", help="no progress bar")
     build.set_defaults(handler=_build)
 
@@ -123,7 +131,16 @@ def _build(args: argparse.Namespace) -> int:
         read_split,
     )
     from dg16m_env.benchmark_report import format_summary
+    from dg16m_env.labels import LabelError, PerturbationSpec
 
+    try:
+        perturbation = (
+            PerturbationSpec()
+            if args.perturbations is None
+            else PerturbationSpec(n_perturbations=args.perturbations)
+        )
+    except LabelError as exc:
+        raise BenchmarkError(f"--perturbations: {exc}") from None
     if (args.meshes is None) != (args.grasps is None):
         raise BenchmarkError("--meshes and --grasps: expected both or neither, found one")
     if args.meshes is not None:
@@ -142,7 +159,7 @@ def _build(args: argparse.Namespace) -> int:
     path = build_benchmark(
         items,
         args.out,
-        BenchmarkParameters(seed=args.seed),
+        BenchmarkParameters(seed=args.seed, perturbation=perturbation),
         workers=args.workers,
         backend=args.backend,
         address=args.address,

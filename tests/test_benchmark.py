@@ -232,7 +232,19 @@ def test_benchmark_from_user_files(tmp_path: Path) -> None:
 
 def test_cli_build_and_info(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert (
-        cli_main(["benchmark", "build", "--out", str(tmp_path), "--limit", "1", "--no-progress"])
+        cli_main(
+            [
+                "benchmark",
+                "build",
+                "--out",
+                str(tmp_path),
+                "--limit",
+                "1",
+                "--perturbations",
+                "2",
+                "--no-progress",
+            ]
+        )
         == 0
     )
     out = capsys.readouterr().out
@@ -253,10 +265,14 @@ def test_cli_build_and_info(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     )
     summary = json.loads(capsys.readouterr().out.split("\nwrote")[0])
     assert summary["objects"] == 1
+    assert summary["trials_per_pair"] == 3, "--perturbations 2: nominal + 2 trials per pair"
     assert "by_family" in summary
     assert (tmp_path / "s.png").stat().st_size > 10_000
     assert cli_main(["benchmark", "build", "--out", str(tmp_path), "--meshes", str(tmp_path)]) == 2
     assert "expected both or neither" in capsys.readouterr().err
+    bad = ["benchmark", "build", "--out", str(tmp_path / "x"), "--perturbations", "-1"]
+    assert cli_main(bad) == 2
+    assert "--perturbations: n_perturbations: expected" in capsys.readouterr().err
 
 
 CROSS_MACHINE_RTOL = 1e-6
