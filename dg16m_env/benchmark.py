@@ -504,7 +504,8 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
         if version == 1:
             raise BenchmarkError(
                 f"{path}: expected schema_version {SCHEMA_VERSION}, found 1: a version 1 "
-                "benchmark labels each pair with one trial at the exact pose (dg16m 0.1); "
+                "benchmark labels each pair with one trial at the exact pose (written before "
+                "benchmark protocol v2); "
                 "version 2 labels are success probabilities over perturbed trials. Rebuild it "
                 "with `dg16m benchmark build` (the shipped benchmark is version 2)"
             )
@@ -553,6 +554,19 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
             "p_success": _read(f, path, "labels/p_success", (n,), "f"),
             "p_gravity": _read(f, path, "labels/p_gravity", (n,), "f"),
         }
+        stored_label = _read(f, path, "labels/label", (n,), "b")
+    codes = label_arrays["status"]
+    if n and not np.isin(codes, [s.value for s in TrialStatus]).all():
+        raise BenchmarkError(
+            f"{path}: labels/trial_status: expected TrialStatus codes 0-{len(TrialStatus) - 1}, "
+            f"found {int(codes[~np.isin(codes, [s.value for s in TrialStatus])][0])}"
+        )
+    phases = label_arrays["failing_phase"]
+    if n and (phases.min() < -1 or phases.max() >= len(PHASES)):
+        raise BenchmarkError(
+            f"{path}: labels/trial_phase: expected values in [-1, {len(PHASES)}), found "
+            f"[{phases.min()}, {phases.max()}]"
+        )
     if n and (index.min() < 0 or index.max() >= o):
         raise BenchmarkError(
             f"{path}: grasps/object_index: expected values in [0, {o}), found "
@@ -597,6 +611,12 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
                 f"{path}: labels/{name}: expected the fraction of held trials in "
                 f"labels/trial_status, found {stored[row]!r} against {derived[row]!r} in row {row}"
             )
+    if not np.array_equal(stored_label, labels.label()):
+        row = int(np.argmax(stored_label != labels.label()))
+        raise BenchmarkError(
+            f"{path}: labels/label: expected p_success >= 0.5, found {bool(stored_label[row])} "
+            f"with p_success {labels.p_success[row]!r} in row {row}"
+        )
     return Benchmark(
         objects=objects,
         object_index=index.astype(np.int32),
