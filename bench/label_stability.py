@@ -52,6 +52,7 @@ import numpy as np
 
 from dataset_gen.atomic import write_json_atomic
 from dataset_gen.errors import Dg16mError
+from dataset_gen.json_values import json_ready
 from dataset_gen.parallel import run_tasks
 from dg16m_env.benchmark import (
     EMBEDDED_BENCHMARK,
@@ -579,19 +580,6 @@ def per_row(bench: Benchmark, rows: np.ndarray, named: dict[str, GraspLabels]) -
     }
 
 
-def clean(value: Any) -> Any:
-    """JSON-ready: numpy scalars to Python, non-finite floats to None."""
-    if isinstance(value, dict):
-        return {str(k): clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [clean(v) for v in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
 # --------------------------------------------------------------------------------------------
 # Main
 # --------------------------------------------------------------------------------------------
@@ -679,7 +667,7 @@ def run(args: Arguments) -> int:
     report["stats"] = stats
     report["timing"] = timing
     if args.json:
-        write_json_atomic(Path(args.json), clean(report))
+        write_json_atomic(Path(args.json), json_ready(report))
         print(f"wrote {args.json}")
     return 0
 

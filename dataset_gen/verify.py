@@ -50,6 +50,7 @@ from .force_closure import (
     project_cone_ball,
 )
 from .force_closure.geometry import apply_grasp
+from .json_values import json_ready
 from .parameters import PAPER
 
 FloatArray = NDArray[np.float64]
@@ -171,30 +172,13 @@ class VerifyReport:
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-serialisable dict (NaN and inf become None)."""
-        out = _jsonable(asdict(self))
+        out = json_ready(asdict(self))
         out["unexplained"] = [d.index for d in self.unexplained]
         return out
 
     def format_text(self, limit: int = TEXT_LIMIT) -> str:
         """The human-readable report (at most ``limit`` disagreements listed)."""
         return format_report(self, limit=limit)
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
-    if isinstance(value, np.bool_ | bool):
-        return bool(value)
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, float | np.floating):
-        value = float(value)
-        return value if np.isfinite(value) else None
-    return value
 
 
 # --------------------------------------------------------------------------------------------

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from dataset_gen.json_values import json_ready
 from dg16m_env.benchmark import SOURCES, Benchmark
 from dg16m_env.labels import LEVELS, UNCERTAIN
 from dg16m_env.trial import PHASES, TrialStatus
@@ -69,25 +70,6 @@ phase counts always add up to the failed trials)."""
 # --------------------------------------------------------------------------------------------
 # Numbers
 # --------------------------------------------------------------------------------------------
-
-
-def json_ready(value: Any) -> Any:
-    """``value`` with NaN and infinities replaced by ``None`` and numpy scalars and arrays made
-    plain Python (recursively through dicts, lists and tuples), so that ``json.dumps(...,
-    allow_nan=False)`` accepts it."""
-    if isinstance(value, Mapping):
-        return {str(k): json_ready(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_ready(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return json_ready(value.tolist())
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
-    return value
 
 
 def present_arms(bench: Benchmark) -> list[str]:

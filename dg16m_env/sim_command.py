@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 from typing import Any
@@ -21,6 +20,7 @@ import numpy as np
 
 from dataset_gen.cli import add_command
 from dataset_gen.errors import Dg16mError
+from dataset_gen.json_values import json_ready
 from dataset_gen.parameters import PAPER
 from dg16m_env.decomposition import DecompositionParameters
 
@@ -432,14 +432,6 @@ def _replay_grasps(args, n_frames: int, width: int, height: int, camera) -> int:
     return 0
 
 
-def _finite(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    return value
-
-
 INVALID_MEANING = {
     "hand0_penetrates": "the open hand 0 already sits inside the object",
     "hand1_penetrates": "the open hand 1 already sits inside the object",
@@ -567,7 +559,7 @@ def _run_payload(
         "file": str(file),
         "object": object_id,
         "perturbation": labels.spec.to_dict(),
-        "summary": _finite(labels.nominal.summary()),
+        "summary": json_ready(labels.nominal.summary()),
         "invalid_reasons": labels.nominal.invalid_reasons(),
         "open_hand_inside": hits,
         "force_closure": _force_closure_rates(labels, n_passing),

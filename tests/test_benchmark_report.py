@@ -14,6 +14,7 @@ import pytest
 pytest.importorskip("mujoco")
 
 from dataset_gen.cli import main as cli_main
+from dataset_gen.json_values import json_ready
 from dg16m_env.benchmark import (
     ARMS,
     SOURCES,
@@ -28,7 +29,6 @@ from dg16m_env.benchmark_report import (
     benchmark_report,
     failure_phases,
     format_summary,
-    json_ready,
     p_histogram,
     plot_summary,
     summary_by_family,
