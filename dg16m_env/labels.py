@@ -182,6 +182,16 @@ def perturb_poses(
     return out
 
 
+def trial_poses(
+    scene: Scene, grasps: np.ndarray, seeds: np.ndarray, spec: PerturbationSpec
+) -> np.ndarray:
+    """(N, K + 1, 2, 4, 4) the hand poses of every trial of each dual grasp: column 0 the nominal
+    poses, columns 1..K the perturbations (:func:`perturb_poses` about the scene's grasp centres,
+    :func:`~dg16m_env.trial.grasp_centres`). ``grasps``: (N, 2, 4, 4); ``seeds``: (N,)."""
+    perturbed = perturb_poses(grasps, grasp_centres(scene, grasps), seeds, spec)
+    return np.concatenate([grasps[:, None], perturbed], axis=1)
+
+
 @dataclass(eq=False)
 class GraspLabels:
     """Success probabilities of N dual grasps (see the module docstring).
@@ -341,8 +351,7 @@ def success_probability(
     n, trials = len(grasps), spec.trials
     if seeds is None:
         seeds = row_seeds(spec.seed, scene.object_id, n)
-    perturbed = perturb_poses(grasps, grasp_centres(scene, grasps), seeds, spec)
-    everything = np.concatenate([grasps[:, None], perturbed], axis=1)
+    everything = trial_poses(scene, grasps, seeds, spec)
     results = run_trials(
         scene, everything.reshape(n * trials, 2, 4, 4), protocol, progress=progress
     )

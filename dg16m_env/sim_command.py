@@ -347,10 +347,10 @@ def _replay(args: argparse.Namespace) -> int:
 
 def _replay_benchmark(args, n_frames: int, width: int, height: int, camera) -> int:
     from dg16m_env.benchmark import SOURCES, read_benchmark
-    from dg16m_env.labels import perturb_poses
+    from dg16m_env.labels import trial_poses
     from dg16m_env.replay import describe_result, replay_trial
     from dg16m_env.scene import compile_scene
-    from dg16m_env.trial import PHASES, TrialStatus, grasp_centres
+    from dg16m_env.trial import PHASES, TrialStatus
 
     bench = read_benchmark(args.benchmark)
     row = _check_range("--row", args.row, bench.n, "row")
@@ -364,11 +364,8 @@ def _replay_benchmark(args, n_frames: int, width: int, height: int, camera) -> i
     trial = _check_range("--trial", args.trial, trials, "trial (0 nominal, 1..K perturbed)")
     obj = item.load(args.meshes)
     scene = compile_scene(obj, params=bench.parameters().scene, parts=item.parts)
-    pose = bench.poses[row]
-    if trial > 0:
-        centres = grasp_centres(scene, pose[None])
-        perturbed = perturb_poses(pose[None], centres, bench.labels.seeds[[row]], bench.labels.spec)
-        pose = perturbed[0, trial - 1]
+    seeds = bench.labels.seeds[[row]]
+    pose = trial_poses(scene, bench.poses[[row]], seeds, bench.labels.spec)[0, trial]
     replay = replay_trial(
         scene,
         pose,

@@ -48,7 +48,7 @@ from __future__ import annotations
 import enum
 import itertools
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import mujoco
@@ -709,9 +709,8 @@ class StepMeasures:
 
     def store(self, rows: np.ndarray | slice, steps: slice, other: StepMeasures) -> None:
         """Write ``other`` (measures of ``rows`` over ``steps``) into these arrays."""
-        for name in ("displacement", "rotation", "finite", "broken", "fast", "depth"):
-            getattr(self, name)[rows, steps] = getattr(other, name)
-        self.hand_contacts[rows, steps] = other.hand_contacts
+        for f in fields(self):
+            getattr(self, f.name)[rows, steps] = getattr(other, f.name)
 
 
 def measure_steps(
