@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from dataset_gen.atomic import write_json_atomic
+from dataset_gen.json_values import json_ready
 from dg16m_env.benchmark import (
     EMBEDDED_BENCHMARK,
     SOURCES,
@@ -197,9 +199,7 @@ def _report(args: argparse.Namespace, per_object: dict[str, dict], start: float,
 
 def _write(path: Path, report: dict) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(report, indent=1))
-    tmp.replace(path)
+    write_json_atomic(path, json_ready(report))
 
 
 if __name__ == "__main__":
