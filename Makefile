@@ -26,7 +26,9 @@ demo: $(STAMP)
 	$(BIN)/dg16m grippers
 	$(BIN)/dg16m benchmark info --plot $(DEMO)/benchmark.png
 	$(BIN)/dg16m sim replay --row 1 --out $(DEMO)/replay.png
-	@echo "demo outputs in $(DEMO)/: objects/ (meshes, parts, manifest.json), objects.png, benchmark.png, replay.png"
+	$(BIN)/dg16m baselines submissions --out $(DEMO)/submissions --strategies benchmark_fc_pass --no-progress
+	$(BIN)/dg16m evaluate $(DEMO)/submissions/benchmark_fc_pass.h5 --evaluators fce --workers 2 --out $(DEMO)/fce.json --no-progress
+	@echo "demo outputs in $(DEMO)/: objects/ (meshes, parts, manifest.json), objects.png, benchmark.png, replay.png, submissions/, fce.json"
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

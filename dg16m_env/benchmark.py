@@ -251,13 +251,15 @@ class BenchmarkObject:
     mass: float
     parts: tuple[ConvexPart, ...]
 
-    def load(self, mesh_root: str | os.PathLike[str] | None = None) -> GraspObject:
-        """Rebuild the :class:`GraspObject` (procedural: from family and seed; mesh: from
-        ``mesh_root / file``)."""
+    def source(self, mesh_root: str | os.PathLike[str] | None = None) -> ObjectSource:
+        """Where the object comes from (procedural: family and seed; mesh: ``mesh_root / file``
+        at the stored scale).
+
+        Raises:
+            BenchmarkError: a mesh object and no ``mesh_root``.
+        """
         if self.family:
-            return ObjectSource(self.object_id, family=self.family, family_seed=self.seed).load(
-                self.mass
-            )
+            return ObjectSource(self.object_id, family=self.family, family_seed=self.seed)
         if mesh_root is None:
             raise BenchmarkError(
                 f"{self.object_id}: expected a mesh folder holding {self.file!r}, found none given"
@@ -265,7 +267,11 @@ class BenchmarkObject:
         # The stored scale is what the benchmark was built with: no plausibility check on size.
         return ObjectSource(
             self.object_id, mesh=Path(mesh_root) / self.file, scale=self.scale, allow_any_size=True
-        ).load(self.mass)
+        )
+
+    def load(self, mesh_root: str | os.PathLike[str] | None = None) -> GraspObject:
+        """Rebuild the :class:`GraspObject` (see :meth:`source`) at the stored mass."""
+        return self.source(mesh_root).load(self.mass)
 
     def __repr__(self) -> str:  # parts hold every hull vertex: count them instead
         origin = f"{self.family} seed {self.seed}" if self.family else f"mesh {self.file!r}"
@@ -349,6 +355,34 @@ class Benchmark:
         if object_id not in ids:
             raise BenchmarkError(f"object: expected one of the {len(ids)} ids, found {object_id!r}")
         return np.flatnonzero(self.object_index == ids.index(object_id))
+
+    def select_objects(self, object_ids: Sequence[str]) -> Benchmark:
+        """A benchmark of the given objects only (in the given order, rows in their stored
+        order within each object), e.g. a small benchmark for tests.
+
+        Raises:
+            BenchmarkError: an unknown or repeated id.
+        """
+        if len(set(object_ids)) != len(object_ids):
+            raise BenchmarkError(f"object_ids: expected unique ids, found {list(object_ids)}")
+        rows = [self.object_rows(i) for i in object_ids]  # raises on unknown ids
+        index = np.concatenate(
+            [np.full(r.size, k, dtype=np.int32) for k, r in enumerate(rows)] or [np.zeros(0)]
+        ).astype(np.int32)
+        take = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
+        by_id = {o.object_id: o for o in self.objects}
+        return Benchmark(
+            objects=[by_id[i] for i in object_ids],
+            object_index=index,
+            poses=self.poses[take],
+            contact_points=self.contact_points[take],
+            contact_normals=self.contact_normals[take],
+            source=self.source[take],
+            fc_passed=self.fc_passed[take],
+            fc_loss=self.fc_loss[take],
+            labels=self.labels.select(take),
+            metadata=dict(self.metadata),
+        )
 
     def summary(self, *, n_resamples: int = 2000, seed: int = 0) -> dict[str, Any]:
         """Per arm and level: FCE, GSR over all pairs and over valid ones (with object-resampled

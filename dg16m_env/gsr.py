@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from dataset_gen.errors import Dg16mError
 from dataset_gen.objects import ConvexPart
@@ -146,8 +147,10 @@ def evaluate_objects(
     workers: int = 1,
     backend: Backend = "local",
     address: str | None = None,
+    progress: bool = False,
 ) -> GsrResult:
-    """Success probabilities of every job's dual grasps, objects in parallel.
+    """Success probabilities of every job's dual grasps, objects in parallel (a progress bar
+    over objects when ``progress``).
 
     Raises:
         GsrError: duplicate object ids.
@@ -163,9 +166,8 @@ def evaluate_objects(
         protocol or TrialProtocol(),
         spec or PerturbationSpec(),
     )
-    for job, result in run_tasks(
-        _task, list(jobs), args, workers=workers, backend=backend, address=address
-    ):
+    results = run_tasks(_task, list(jobs), args, workers=workers, backend=backend, address=address)
+    for job, result in tqdm(results, total=len(jobs), desc="gsr", disable=not progress):
         if isinstance(result, str):
             out.errors[job.object_id] = result
         else:

@@ -24,6 +24,9 @@ SUBCOMMANDS = [
     "stats",
     "benchmark",
     "sim",
+    "evaluate",
+    "submission",
+    "baselines",
 ]
 
 
@@ -62,6 +65,10 @@ def test_console_script_help_lists_every_subcommand() -> None:
         ["verify"],
         ["generate"],
         ["stats"],
+        ["evaluate"],
+        ["submission", "validate"],
+        ["submission", "make"],
+        ["baselines", "submissions"],
     ],
 )
 def test_each_subcommand_has_help_with_examples(
@@ -210,12 +217,17 @@ def test_commands_come_from_the_entry_point_group_in_a_stable_order() -> None:
         "dataset_gen.commands:register",
         "dataset_gen.generate_command:register",
         "dataset_gen.verify_command:register",
+        "baselines.commands:register",
         "dg16m_env.benchmark_command:register",
+        "dg16m_env.evaluate_command:register",
         "dg16m_env.sim_command:register",
     ]
     parser = build_parser()
     names = list(parser._subparsers._group_actions[0].choices)  # help order
-    assert names == [*SUBCOMMANDS[:4], "generate", "stats", "verify", "benchmark", "sim"]
+    assert names == [
+        *SUBCOMMANDS[:4],
+        *("generate", "stats", "verify", "baselines", "benchmark", "evaluate", "submission", "sim"),
+    ]
 
 
 def test_dataset_gen_names_no_package_above_it() -> None:

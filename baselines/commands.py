@@ -1,0 +1,113 @@
+"""``dg16m baselines submissions``: the reference submissions of the pairing baselines.
+
+The logic lives in :mod:`baselines.reference_submissions`; this module holds only the command
+line (the same arguments serve ``python -m baselines.reference_submissions``). Heavy imports
+happen inside the handler so that ``dg16m --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from dataset_gen.cli import add_command
+from dg16m_env.evaluate_command import add_benchmark_arguments
+
+DEFAULT_STRATEGIES = ("random", "farthest", "force_closure", "benchmark_fc_pass")
+"""The reference submissions written by default, one file ``<name>.h5`` each."""
+
+BASELINES_EXAMPLES = (
+    "  dg16m baselines submissions --out runs/reference --workers 2\n"
+    "  dg16m evaluate runs/reference/force_closure.h5 --evaluators fce\n"
+)
+
+SUBMISSIONS_EXAMPLES = (
+    "  # the four reference submissions for the shipped benchmark, on 2 processes (~2 minutes)\n"
+    "  dg16m baselines submissions --out runs/reference --workers 2\n"
+    "  # 20 grasps per object, only the sampled baselines, another seed\n"
+    "  dg16m baselines submissions --out runs/ref20 --k 20 --seed 1 \\\n"
+    "      --strategies random,farthest,force_closure\n"
+    "  # a benchmark you built\n"
+    "  dg16m baselines submissions --out runs/mine-ref --benchmark runs/bench10/benchmark.h5\n"
+)
+
+
+def register(subparsers: Any) -> None:
+    """Add ``dg16m baselines {submissions}``."""
+    baselines = add_command(
+        subparsers,
+        "baselines",
+        "Reference predictions of the baselines (the paper's pairing strategies).",
+        BASELINES_EXAMPLES,
+        description="Baselines to compare against (see 'dg16m baselines submissions --help').",
+    )
+    sub = baselines.add_subparsers(dest="baselines_command", metavar="ACTION", required=True)
+    submissions = add_command(
+        sub,
+        "submissions",
+        "Write one submission file per pairing baseline (random, farthest, force closure, "
+        "the benchmark's own passing pairs).",
+        SUBMISSIONS_EXAMPLES,
+        description=(
+            "For each benchmark object: sample single-arm grasps (the benchmark's count, a "
+            "seeded stream of its own), pair them and keep K dual grasps by the paper's "
+            "Table III strategies: random collision-free candidates (random.h5), farthest "
+            "pairs (farthest.h5), force-closure-passing candidates (force_closure.h5, scores "
+            "-loss). benchmark_fc_pass.h5 holds the benchmark's own first K stored passing "
+            "pairs per object. Files are written to OUT as dg16m submissions (score them with "
+            "the fce or gsr evaluators). Results do not depend on --workers."
+        ),
+    )
+    add_submission_arguments(submissions)
+    submissions.set_defaults(handler=run_submissions)
+
+
+def add_submission_arguments(parser: argparse.ArgumentParser) -> None:
+    """The arguments of ``dg16m baselines submissions`` (also
+    ``python -m baselines.reference_submissions``)."""
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument(
+        "--k", type=int, default=10, help="dual grasps per object and baseline (default 10)"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="global seed (default 0)")
+    parser.add_argument("--workers", type=int, default=1, help="local processes (default 1)")
+    add_benchmark_arguments(parser)
+    parser.add_argument(
+        "--strategies",
+        default=",".join(DEFAULT_STRATEGIES),
+        help=f"comma-separated baselines (default {','.join(DEFAULT_STRATEGIES)})",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run_submissions(args: argparse.Namespace) -> int:
+    """Handler of ``dg16m baselines submissions``: 0 when every file is written, 1 when some
+    baseline failed on some object (its file is not written; the others are)."""
+    import time
+
+    from baselines.reference_submissions import (
+        ReferenceSubmissionError,
+        parse_strategies,
+        write_reference_submissions,
+    )
+
+    start = time.perf_counter()
+    try:
+        paths = write_reference_submissions(
+            args.out,
+            benchmark=args.benchmark,
+            mesh_root=args.mesh_root,
+            k=args.k,
+            seed=args.seed,
+            workers=args.workers,
+            strategies=parse_strategies(args.strategies),
+            progress=not args.no_progress,
+        )
+    except ReferenceSubmissionError as exc:
+        print(exc)
+        return 1
+    for name, path in paths.items():
+        print(f"wrote {path}  ({name})")
+    print(f"{len(paths)} submissions in {time.perf_counter() - start:.1f} s")
+    return 0

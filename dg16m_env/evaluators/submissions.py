@@ -1,0 +1,71 @@
+"""What the submission evaluators (``fce``, ``gsr``) take: a :class:`~dg16m_env.submission.Submission`
+in memory or a submission file, checked against the benchmark before anything is scored."""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+from dg16m_env.submission import Submission, read_submission
+
+from .context import BenchmarkRef
+from .registry import EvaluatorError
+
+
+def as_submission(subject: Any, ref: BenchmarkRef) -> Submission:
+    """A validated submission for the benchmark ``ref``.
+
+    Args:
+        subject: a :class:`Submission`, or the path of a submission file (validated in full by
+            :func:`dg16m_env.submission.read_submission`).
+        ref: the benchmark scored against.
+
+    Raises:
+        SubmissionInvalid: the file has problems (every one is listed).
+        EvaluatorError: an in-memory submission whose objects or shapes do not match.
+    """
+    if isinstance(subject, (str, os.PathLike)):
+        return read_submission(
+            subject, object_ids=ref.object_ids, benchmark_sha256=ref.sha256, embedded=ref.embedded
+        )
+    if not isinstance(subject, Submission):
+        raise EvaluatorError(
+            f"subject: expected a Submission or a submission file path, found "
+            f"{type(subject).__name__}"
+        )
+    missing = sorted(set(ref.object_ids) - set(subject.poses))
+    unknown = sorted(set(subject.poses) - set(ref.object_ids))
+    if missing or unknown:
+        raise EvaluatorError(
+            f"submission: expected the benchmark's {len(ref.object_ids)} objects, found "
+            f"{len(missing)} missing (e.g. {missing[:3]}) and {len(unknown)} unknown "
+            f"(e.g. {unknown[:3]})"
+        )
+    for object_id, poses in subject.poses.items():
+        shape = np.shape(poses)
+        if len(shape) != 4 or shape[1:] != (2, 4, 4) or shape[0] < 1:
+            raise EvaluatorError(
+                f"objects/{object_id}/poses: expected shape (K >= 1, 2, 4, 4), found {shape}"
+            )
+    return subject
+
+
+def submission_record(submission: Submission) -> dict[str, Any]:
+    """What a result records of the submission it scored."""
+    return {
+        "kind": "submission",
+        "sha256": submission.sha256,
+        "objects": len(submission.poses),
+        "dual_grasps": submission.n_grasps,
+        "metadata": dict(submission.metadata),
+    }
+
+
+def stacked(submission: Submission, object_ids: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """All dual grasps in benchmark object order: ``poses (N, 2, 4, 4)`` and ``object_index
+    (N,)`` into ``object_ids``."""
+    poses = [np.asarray(submission.poses[i], dtype=np.float64) for i in object_ids]
+    index = np.concatenate([np.full(len(p), k, dtype=np.int64) for k, p in enumerate(poses)])
+    return np.concatenate(poses), index
