@@ -9,3 +9,7 @@ libraries ``libegl1`` / ``libosmesa6``). Without it dm_control tries an X11 wind
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+
+from dg16m_env import envs  # registers the Gymnasium environments (after MUJOCO_GL is set)
+
+__all__ = ["envs"]

@@ -436,6 +436,19 @@ class Scene:
         )
 
 
+def compile_model(root: mjcf.RootElement, object_id: str) -> tuple[mujoco.MjModel, str]:
+    """Compile an MJCF scene; returns the model and its XML.
+
+    Raises:
+        SceneError: MuJoCo's compiler refused it (degenerate meshes and the like).
+    """
+    xml = root.to_xml_string()
+    try:
+        return mujoco.MjModel.from_xml_string(xml, root.get_assets()), xml
+    except ValueError as exc:
+        raise SceneError(f"{object_id}: MuJoCo could not compile the scene: {exc}") from exc
+
+
 def compile_scene(
     obj: GraspObject,
     *,
@@ -447,12 +460,7 @@ def compile_scene(
     params = params or SceneParameters()
     gripper_model = get_gripper(gripper)
     root = scene_model(obj, gripper=gripper_model, params=params, parts=parts)
-    xml = root.to_xml_string()
-    assets = root.get_assets()
-    try:
-        model = mujoco.MjModel.from_xml_string(xml, assets)
-    except ValueError as exc:  # MuJoCo's compiler rejects degenerate meshes and the like
-        raise SceneError(f"{obj.object_id}: MuJoCo could not compile the scene: {exc}") from exc
+    model, xml = compile_model(root, obj.object_id)
 
     def body_id(name: str) -> int:
         return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)

@@ -291,3 +291,22 @@ def test_not_a_policy() -> None:
     assert isinstance(ev, PolicyEvaluator)
     with pytest.raises(EvaluatorError, match=r"expected a callable policy.* found builtins.int"):
         ev.evaluate(5)
+
+
+def test_a_stateful_policy_is_reset_at_every_episode() -> None:
+    class Counting:
+        def __init__(self) -> None:
+            self.resets = 0
+            self.calls = 0
+
+        def reset(self) -> None:
+            self.resets += 1
+
+        def __call__(self, observation: Any) -> int:
+            self.calls += 1
+            return 0
+
+    policy = Counting()
+    make("policy", env_id=ENV_ID, n_episodes=7, seed=0).evaluate(policy)
+    assert policy.resets == 7
+    assert policy.calls >= 7

@@ -10,6 +10,9 @@ One of:
   stable-baselines3 model (detected by the attribute; ``state`` is ignored, each call sees one
   observation).
 
+A callable policy with a ``reset()`` method (a stateful one, e.g. a scripted controller) has it
+called at the start of every episode, after the environment's reset.
+
 A ``name`` attribute (str), when present, is recorded in the result's ``subject``.
 
 Protocol
@@ -323,8 +326,10 @@ class PolicyEvaluator(Evaluator):
             f"episode, found keys {keys}"
         )
 
-    def _episode(self, env: Any, act: Callable[[Any], Any], i: int) -> Episode:
-        """Run episode ``i`` (reset with ``seed + i``)."""
+    def _episode(
+        self, env: Any, act: Callable[[Any], Any], i: int, reset: Callable[[], Any] | None
+    ) -> Episode:
+        """Run episode ``i`` (reset with ``seed + i``; then the policy's own ``reset()``)."""
         try:
             observation, info = env.reset(seed=self.seed + i)
         except Exception as exc:
@@ -335,6 +340,8 @@ class PolicyEvaluator(Evaluator):
         object_id = info.get("object_id") if isinstance(info, Mapping) else None
         object_id = None if object_id is None else str(object_id)
         ret, length = 0.0, 0
+        if reset is not None:  # a stateful policy (e.g. a scripted one) starts afresh
+            reset()
         while True:
             try:
                 action = _checked_action(env.action_space, act(observation))
@@ -359,10 +366,14 @@ class PolicyEvaluator(Evaluator):
     def run_episodes(self, subject: Any) -> list[Episode]:
         """Every episode's outcome, in order (see the module docstring)."""
         act, _ = self._actor(subject)
+        reset = getattr(subject, "reset", None)
+        reset = (
+            reset if callable(reset) and not callable(getattr(subject, "predict", None)) else None
+        )
         env = self._make_env()
         try:
             return [
-                self._episode(env, act, i)
+                self._episode(env, act, i, reset)
                 for i in tqdm(range(self.n_episodes), desc="policy", disable=not self.progress)
             ]
         finally:

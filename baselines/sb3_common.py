@@ -1,0 +1,144 @@
+"""What the stable-baselines3 scripts share: argument parsing from a dataclass, the learning
+curve (mean reward per PPO/SAC rollout), its plot, and the results file."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from pathlib import Path
+from typing import Any, TypeVar
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from dataset_gen.atomic import atomic_path, write_json_atomic
+from dataset_gen.io import package_version
+from dg16m_env.evaluators import EvaluationResult
+
+A = TypeVar("A")
+
+
+def parse_args(cls: type[A], description: str) -> A:
+    """The dataclass ``cls`` filled from ``--field-name value`` flags (defaults: its own)."""
+    parser = argparse.ArgumentParser(description=description)
+    for field in dataclasses.fields(cls):  # type: ignore[arg-type]
+        flag = "--" + field.name.replace("_", "-")
+        kind = type(field.default)
+        parser.add_argument(flag, type=kind, default=field.default, help=field.name)
+    return cls(**vars(parser.parse_args()))
+
+
+def split_objects(object_ids: list[str]) -> tuple[list[str], list[str]]:
+    """``(train, held_out)``: every third object held out (benchmark order, so each family is
+    on both sides)."""
+    held_out = object_ids[::3]
+    return [i for i in object_ids if i not in held_out], held_out
+
+
+def reward_curve_callback() -> Any:
+    """An SB3 callback recording ``(timesteps, mean reward of the last 1,000 or more steps)``
+    in ``.points`` (the rest at the end of training)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class RewardCurve(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.points: list[tuple[int, float]] = []
+            self.rewards: list[float] = []
+
+        def _flush(self) -> None:
+            if self.rewards:
+                self.points.append((self.num_timesteps, float(np.mean(self.rewards))))
+                self.rewards = []
+
+        def _on_step(self) -> bool:
+            self.rewards.extend(float(r) for r in np.atleast_1d(self.locals["rewards"]))
+            if len(self.rewards) >= 1000:
+                self._flush()
+            return True
+
+        def _on_training_end(self) -> None:
+            self._flush()
+
+    return RewardCurve()
+
+
+def plot_curve(
+    path: Path,
+    points: list[tuple[int, float]],
+    results: dict[str, EvaluationResult],
+    *,
+    title: str,
+    ylabel: str,
+    train_label: str,
+) -> None:
+    """The learning curve with each evaluated policy's success rate and Wilson interval."""
+    fig = Figure(figsize=(6.4, 4.2))
+    ax = fig.add_subplot()
+    if points:
+        steps, rewards = np.array(points).T
+        ax.plot(steps, rewards, color="C0", label=train_label)
+    ax.set_xlabel("training steps")
+    ax.set_ylabel(ylabel)
+    twin = ax.twinx() if ylabel != "success rate" else ax
+    for k, (name, result) in enumerate(results.items()):
+        rate = result.metrics["success_rate"]
+        color = f"C{k + 1}"
+        twin.axhline(rate["rate"], color=color, label=f"{name}: {rate['rate']:.2f} (eval)")
+        twin.axhspan(rate["ci_low"], rate["ci_high"], color=color, alpha=0.15)
+    twin.set_ylim(0, 1)
+    if twin is not ax:
+        twin.set_ylabel("evaluated success rate (Wilson 95% CI)")
+        twin.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=7, loc="upper left")
+    ax.set_title(title)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=120)
+
+
+def report(
+    args: Any,
+    results: dict[str, EvaluationResult],
+    curve: Any,
+    *,
+    env_id: str,
+    title: str,
+    ylabel: str,
+    train_label: str,
+    **facts: Any,
+) -> None:
+    """Write ``args.out/learning_curve.png`` and ``args.out/results.json``, print each
+    policy's success rate."""
+    plot_curve(
+        args.out / "learning_curve.png",
+        curve.points,
+        results,
+        title=title,
+        ylabel=ylabel,
+        train_label=train_label,
+    )
+    write_run(
+        args.out / "results.json",
+        args,
+        results,
+        env_id=env_id,
+        learning_curve=curve.points,
+        **facts,
+    )
+    for name, result in results.items():
+        print(f"{name:<17} {result.format().splitlines()[1].strip()}")
+    print(f"wrote {args.out}")
+
+
+def write_run(path: Path, args: Any, results: dict[str, EvaluationResult], **extra: Any) -> None:
+    """The run's arguments, package version, extra facts and every evaluation result (JSON)."""
+    write_json_atomic(
+        path,
+        {
+            "args": {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()},
+            "package_version": package_version(),
+            **extra,
+            "results": {name: r.to_dict() for name, r in results.items()},
+        },
+    )

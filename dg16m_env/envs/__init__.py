@@ -1,0 +1,56 @@
+"""Gymnasium environments over the simulation benchmark; registered when :mod:`dg16m_env` is
+imported (Gymnasium 1.x has no plugin entry points).
+
+Ids (each documented in its module, with a version history):
+
+* ``dg16m_env/DualGraspPose-v0`` (:mod:`.dual_grasp_pose`): one step: two hand poses -> one
+  trial of the benchmark protocol;
+* ``dg16m_env/DualGraspSelect-v0`` (:mod:`.dual_grasp_select`): one step: pick one of K
+  candidate dual grasps of the benchmark;
+* ``dg16m_env/DualGraspLift-v0`` (:mod:`.dual_grasp_lift`): closed loop: two floating Panda
+  hands lift an object from a table.
+
+``gym.make("dg16m_env/DualGraspSelect-v0")`` after ``import dg16m_env``; from a fresh
+interpreter ``gym.make("dg16m_env:DualGraspSelect-v0")`` imports the package first. Gymnasium
+looks that form up without the namespace, so every id is also registered under its bare name
+(``DualGraspSelect-v0``), an alias of the same environment.
+"""
+
+from __future__ import annotations
+
+import gymnasium
+
+NAMESPACE = "dg16m_env"
+
+#: name -> (entry point, max_episode_steps or None for one-step environments)
+ENVIRONMENTS: dict[str, tuple[str, int | None]] = {
+    "DualGraspPose-v0": ("dg16m_env.envs.dual_grasp_pose:DualGraspPoseEnv", None),
+    "DualGraspSelect-v0": ("dg16m_env.envs.dual_grasp_select:DualGraspSelectEnv", None),
+    "DualGraspLift-v0": ("dg16m_env.envs.dual_grasp_lift:DualGraspLiftEnv", 200),
+}
+
+
+def env_ids(*, aliases: bool = False) -> list[str]:
+    """The registered ids (``dg16m_env/<Name>-v0``; with ``aliases`` also the bare names)."""
+    ids = [f"{NAMESPACE}/{name}" for name in ENVIRONMENTS]
+    return ids + list(ENVIRONMENTS) if aliases else ids
+
+
+def register_envs() -> None:
+    """Register every environment (idempotent: ids already registered are left alone).
+
+    One-step environments (no step limit) register ``vector_kwargs={"autoreset_mode":
+    "SameStep"}``: ``gym.make_vec`` then resets a finished sub-environment within the same
+    step, instead of spending every other step on a reset (Gymnasium's default, NextStep).
+    """
+    for name, (entry_point, max_steps) in ENVIRONMENTS.items():
+        for env_id in (f"{NAMESPACE}/{name}", name):
+            if env_id in gymnasium.registry:
+                continue
+            kwargs = {} if max_steps else {"vector_kwargs": {"autoreset_mode": "SameStep"}}
+            gymnasium.register(
+                id=env_id, entry_point=entry_point, max_episode_steps=max_steps, kwargs=kwargs
+            )
+
+
+register_envs()

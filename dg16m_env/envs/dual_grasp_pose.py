@@ -1,0 +1,144 @@
+"""``dg16m_env/DualGraspPose-v0``: propose two hand poses, get one trial of the benchmark.
+
+Registered when :mod:`dg16m_env` is imported; see :class:`DualGraspPoseEnv`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from .common import STATUS_NOT_RUN, OneStepGraspEnv, Outcome, check_box_action, cloud_spaces
+from .spaces import pose_action_bounds, poses_from_action
+
+
+class DualGraspPoseEnv(OneStepGraspEnv):
+    """Two Panda hands grasp a benchmark object at the poses the agent proposes; one trial of
+    the benchmark's protocol says whether the object is held.
+
+    ## Description
+
+    Each episode is one step. ``reset`` draws an object of the benchmark (uniformly, with the
+    environment's generator, or ``options={"object_id": ...}``) and shows its point cloud. The
+    action is a dual grasp: two hand poses (Panda grasp frame -> object frame). ``step`` runs
+    ONE trial of the benchmark's protocol (:mod:`dg16m_env.trial`: the open hands at the poses,
+    close, gravity, twelve pushes and twists) on the object's compiled scene, with the
+    benchmark's pose noise: each hand turned by the benchmark's ``theta`` (1 degree) about a
+    random axis through its grasp centre and moved by ``d`` (1 mm) in a random direction, drawn
+    from the environment's generator. The stored label of a benchmark pair is its success
+    probability ``p`` over its nominal trial and ``K`` such perturbed trials, so the reward at a
+    benchmark pair's poses is a Bernoulli draw whose mean is (up to the nominal trial's weight
+    ``1 / (K + 1)``) that ``p``. ``perturb=False`` runs the exact poses (the nominal trial).
+
+    ## Action Space
+
+    ``Box(-1, 1, (2, 9), float32)``: per hand ``[p (3), a (3), b (3)]``, the position ``p`` (m,
+    object frame, within ±1 m) and the continuous 6D rotation (:mod:`dg16m_env.envs.spaces`):
+    ``a`` the closing axis, ``b`` the approach axis, orthonormalised by Gram-Schmidt. Float64
+    arrays and lists are cast; anything outside the space (NaN, out of bounds, wrong shape,
+    strings or objects) raises ``ValueError`` naming the space. An action whose 6D rotation is
+    degenerate (an axis of length < 1e-3 or ``a`` parallel to ``b``) is not an error: no trial
+    runs, reward 0, ``info["invalid_reason"] = "degenerate_rotation"``.
+
+    ## Observation Space
+
+    ``Dict`` of flat float32 vectors (:func:`~dg16m_env.envs.common.structured_observation`
+    reshapes them), object frame (origin at the centre of mass), metres:
+
+    * ``points`` (3 P,): P = ``n_points`` surface points; ``obs_mode="full"``: drawn uniformly
+      by area over the whole surface, the same for every episode on an object
+      (:func:`dg16m_env.observation.object_observation`, seed 0); ``obs_mode="partial"``: what
+      ``n_cameras`` seeded depth cameras see (:mod:`dg16m_env.envs.cameras`), subsampled or
+      zero-padded to P;
+    * ``normals`` (3 P,): unit outward normals of the face under each point (partial mode:
+      the face of the convex part that the pixel sees, found from the segmentation image,
+      exact rather than estimated from neighbouring depths);
+    * ``bounds`` (6,): the object's axis-aligned box, min corner then max corner (the whole
+      object in both modes);
+    * ``mask`` (P,), partial mode only: 1 for a real point, 0 for padding.
+
+    ## Rewards
+
+    1.0 when the object is held at ``level``: ``"full"`` (default), held through the whole
+    protocol; ``"gravity"``, held under gravity (nothing broke before the end of the gravity
+    phase). 0.0 otherwise (failed, unstable, invalid trial, degenerate rotation).
+
+    ## Starting State
+
+    The object at rest at the origin of its frame, open hands at the action's poses.
+
+    ## Episode End
+
+    Every episode terminates after its one step (``terminated=True``, ``truncated=False``);
+    step again only after ``reset``.
+
+    ## Info
+
+    ``reset``: ``object_id``. ``step``: ``success`` and ``is_success`` (bool; ManiSkill's and
+    stable-baselines3's keys), ``object_id``, ``fc_passed`` and ``fc_reason`` (the force-closure
+    verdict of the jaws closed at the nominal action poses,
+    :func:`dg16m_env.evaluators.fce.fce_verdicts`; None with ``fc_info=False``), ``slip_m``
+    (largest slip at the hands' grasp centres, m), ``rotation_deg`` (largest rotation of the
+    object), ``failing_phase`` (a :data:`dg16m_env.trial.PHASES` name, or None),
+    ``invalid_reason`` (``hand0_penetrates``, ``hand1_penetrates``, ``hands_overlap``,
+    ``degenerate_rotation`` or None), ``status`` (``success``, ``failed``, ``invalid``,
+    ``unstable``, or ``not_run``). Entries that do not apply are None.
+
+    ## Randomisations
+
+    All from ``self.np_random`` (seeded by ``reset(seed=...)``): the object, the camera poses and
+    the point subsample (partial mode), the pose noise of each trial. The same seed and action
+    give the same observation bytes, reward and info.
+
+    ## Arguments
+
+    * ``benchmark``: benchmark file or :class:`~dg16m_env.evaluators.context.BenchmarkRef`
+      (default: the procedural benchmark shipped with dg16m); its parameters give the protocol,
+      the pose noise and the force-closure problem.
+    * ``object_ids``: draw only among these objects (default: all).
+    * ``mesh_root``: the folder of a mesh benchmark's meshes.
+    * ``n_points`` (1024): points in the cloud.
+    * ``obs_mode`` (``"full"``): ``"full"`` or ``"partial"``.
+    * ``n_cameras`` (1): depth cameras of the partial observation (1 or 2).
+    * ``camera_resolution`` (128): depth image side (pixels).
+    * ``level`` (``"full"``): ``"full"`` or ``"gravity"`` (see Rewards).
+    * ``perturb`` (True): apply the benchmark's pose noise before the trial.
+    * ``fc_info`` (True): compute ``fc_passed`` / ``fc_reason`` (about 9 ms a step).
+    * ``render_mode`` (None): None or ``"rgb_array"``.
+    * ``render_width`` (480), ``render_height`` (360): picture size (pixels).
+    * ``vector_kwargs``: ignored (``gym.make_vec``'s, see :mod:`dg16m_env.envs.common`).
+
+    ## Vector environments
+
+    ``gym.make_vec(id, num_envs, vectorization_mode="sync" | "async")`` uses the ``SAME_STEP``
+    autoreset mode registered for this id: every step is a real trial (see
+    :mod:`dg16m_env.envs.common`).
+
+    ## Version History
+
+    * v0: initial.
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        low, high = pose_action_bounds(2)
+        self.action_space = spaces.Box(low=low, high=high, dtype=np.float32)
+        self.observation_space = spaces.Dict(
+            cloud_spaces(self.n_points, self.obs_mode == "partial")
+        )
+
+    def _act(self, action: Any) -> Outcome:
+        checked = check_box_action(action, self.action_space)
+        poses, valid = poses_from_action(checked)
+        if not valid.all():  # bounds already checked: only a degenerate rotation is left
+            fc = (False, "invalid_pose") if self.fc_info else (None, None)
+            return Outcome(
+                success=False,
+                status=STATUS_NOT_RUN,
+                invalid_reason="degenerate_rotation",
+                fc_passed=fc[0],
+                fc_reason=fc[1],
+            )
+        return self.trial(poses)

@@ -1,0 +1,51 @@
+"""The stable-baselines3 baseline scripts run end to end on tiny budgets (slow: minutes)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("module", "argv", "policies"),
+    [
+        (
+            "baselines.sb3_select",
+            ["--total-timesteps", "512", "--n-envs", "2"],
+            {"ppo", "random_candidate"},
+        ),
+        (
+            "baselines.sb3_lift",
+            ["--total-timesteps", "512", "--n-envs", "2"],
+            {"ppo", "scripted", "random_actions"},
+        ),
+        (
+            "baselines.sb3_pose",
+            ["--total-timesteps", "150", "--learning-starts", "50"],
+            {"sac", "random_actions"},
+        ),
+    ],
+)
+def test_script_writes_checkpoint_curve_and_results(tmp_path: Path, module, argv, policies) -> None:
+    out = tmp_path / "run"
+    subprocess.run(
+        [sys.executable, "-m", module, *argv, "--eval-episodes", "3", "--out", str(out)],
+        check=True,
+        capture_output=True,
+        timeout=900,
+    )
+    results = json.loads((out / "results.json").read_text())
+    assert set(results["results"]) == policies
+    for result in results["results"].values():
+        rate = result["metrics"]["success_rate"]
+        assert rate["rows"] == 3
+        assert 0.0 <= rate["rate"] <= 1.0
+    assert (out / "learning_curve.png").stat().st_size > 10_000
+    assert list(out.glob("*.zip"))
