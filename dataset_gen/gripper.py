@@ -407,7 +407,7 @@ def _pose_status(
     valid = np.asarray(is_rigid(poses, atol=1e-5)).reshape(n)
     status[~valid] = ContactStatus.INVALID_POSE
     if check_collision and valid.any():
-        checker = _CollisionChecker(mesh, model, w)
+        checker = _collision_checker(mesh, model, w)
         for i in np.flatnonzero(valid):
             outcome = checker.classify(poses[i])
             if outcome != ContactStatus.OK:
@@ -489,6 +489,18 @@ def _first_hits(
     location[ray[first]] = loc[first]
     face[ray[first]] = tri[first]
     return distance, location, face
+
+
+def _collision_checker(
+    mesh: trimesh.Trimesh, model: GripperModel, opening: float
+) -> _CollisionChecker:
+    """The checker of ``mesh`` for this gripper and opening, built once and kept in the mesh's
+    own cache (trimesh drops it when the mesh's data change), so calling
+    :func:`contacts_from_pose` pose by pose does not rebuild the collision manager each time."""
+    key = f"dg16m_collision_checker:{model.name}:{opening!r}"
+    if key not in mesh._cache:
+        mesh._cache[key] = _CollisionChecker(mesh, model, opening)
+    return mesh._cache[key]
 
 
 class _CollisionChecker:

@@ -172,3 +172,20 @@ def test_acronym_panda_grasps_close_on_the_mug(real_data: Path) -> None:
     # ACRONYM's successful grasps put the mug between the Panda's fingers
     assert result.ok.mean() >= 0.8, {s.name: int((result.status == s).sum()) for s in ContactStatus}
     assert np.nanmax(result.width) <= PANDA.max_opening
+
+
+def test_the_collision_checker_is_built_once_per_mesh_and_dropped_when_it_changes():
+    from dataset_gen.gripper import _collision_checker
+
+    mesh = trimesh.creation.box(extents=(0.04, 0.03, 0.03))
+    first = _collision_checker(mesh, PANDA, PANDA.max_opening)
+    assert _collision_checker(mesh, PANDA, PANDA.max_opening) is first
+    assert _collision_checker(mesh, PANDA, 0.05) is not first  # another opening
+    T = np.eye(4)
+    T[1, 3] = -PANDA.contact_depth  # the box between the open fingers
+    before = contacts_from_pose(mesh, T)
+    mesh.vertices = mesh.vertices * np.array([3.0, 1.0, 1.0])  # now wider than the opening
+    assert _collision_checker(mesh, PANDA, PANDA.max_opening) is not first
+    after = contacts_from_pose(mesh, T)
+    assert before.ok[0]
+    assert not after.ok[0]
