@@ -6,7 +6,6 @@ import json
 import multiprocessing
 import tempfile
 import textwrap
-import time
 from pathlib import Path
 from typing import Any
 
@@ -241,13 +240,13 @@ def test_exception_is_reported_and_the_run_goes_on(module_file: Path) -> None:
 
 
 def test_timeout_kills_and_restarts(module_file: Path) -> None:
-    started = time.perf_counter()
     run = run_predictor(spec(module_file, "hangs", time_limit_s=1.5), observations("abcd"))
     assert run.errors == {"b": "timed out after 1.5 s"}
     assert_succeeded(run, "acd")
     assert run.restarts == 1
-    assert 1.5 <= run.seconds["b"] < 5.0
-    assert time.perf_counter() - started < 20.0
+    # The hung call was cut at its limit, not left to run its 100 s (a generous bound: no
+    # speed is measured here).
+    assert 1.5 <= run.seconds["b"] < 60.0
 
 
 def test_crash_is_reported_and_restarts(module_file: Path) -> None:
