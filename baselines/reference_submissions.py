@@ -110,12 +110,8 @@ def reference_baselines(
         k=k,
         n_grasps=params.n_grasps if n_grasps is None else n_grasps,
         seed=seed,
-        mu=params.mu,
         min_center_distance=params.min_center_distance,
-        mass=params.mass,
-        gravity=params.protocol.gravity,
-        f_high=params.f_high,
-        threshold=params.threshold,
+        **params.force_closure_kwargs(),  # mass, gravity, mu, f_high, threshold
     )
     return [replace(base, strategy=s) for s in strategies if s in PAIRING_STRATEGIES]
 

@@ -73,7 +73,6 @@ from tqdm import tqdm
 
 from dataset_gen.checks import check_integer
 from dataset_gen.errors import Dg16mError
-from dataset_gen.io import package_version
 from dataset_gen.sources import object_seed
 from dg16m_env.labels import LEVELS
 from dg16m_env.observation import object_observation
@@ -81,7 +80,7 @@ from dg16m_env.rates import object_rate
 
 from .context import BenchmarkRef, load_benchmark_ref
 from .registry import Evaluator, EvaluatorError, register
-from .result import EvaluationResult, breakdown
+from .result import EvaluationResult, breakdown, code_subject, qualified_type
 
 
 class ScoreError(Exception):
@@ -107,11 +106,6 @@ def average_precision(scores: np.ndarray, labels: np.ndarray) -> float | None:
         return None
     precision = np.cumsum(ranked) / np.arange(1, ranked.size + 1)
     return float(precision[ranked].sum() / n_pos)
-
-
-def _qualified_type(subject: Any) -> str:
-    cls = type(subject)
-    return f"{cls.__module__}.{cls.__qualname__}"
 
 
 def _is_torch_module(subject: Any) -> bool:
@@ -276,7 +270,7 @@ class ClassifierEvaluator(Evaluator):
         elif not callable(subject):
             raise EvaluatorError(
                 "classifier: expected a callable classifier(observation, poses) -> scores or a "
-                f"torch.nn.Module, found {_qualified_type(subject)}"
+                f"torch.nn.Module, found {qualified_type(subject)}"
             )
         if module:
             import torch
@@ -397,18 +391,11 @@ class ClassifierEvaluator(Evaluator):
             entry["scored"] = object_id not in failures and entry["candidates"] > 0
 
         all_rows = np.concatenate(chance_rows) if chance_rows else np.zeros(0, np.int64)
-        name = getattr(subject, "name", None)
-        return EvaluationResult(
-            evaluator=self.name,
-            evaluator_version=self.version,
-            package_version=package_version(),
+        return self.result(
             benchmark=ref.record(),
-            subject={
-                "kind": "classifier",
-                "name": name if isinstance(name, str) else None,
-                "type": _qualified_type(subject),
-                "interface": "torch.nn.Module" if module else "callable",
-            },
+            subject=code_subject(
+                "classifier", subject, "torch.nn.Module" if module else "callable"
+            ),
             parameters={
                 "k": k,
                 "levels": list(self.levels),

@@ -27,18 +27,17 @@ from tqdm import tqdm
 from dataset_gen.errors import Dg16mError
 from dataset_gen.force_closure import evaluate
 from dataset_gen.gripper import ContactStatus, contacts_from_pose
-from dataset_gen.io import package_version
 from dataset_gen.objects import GraspObject
 from dataset_gen.pairing import grippers_collide
-from dataset_gen.parallel import Backend, check_backend, run_tasks
+from dataset_gen.parallel import Backend, run_tasks
 from dataset_gen.sampling import SingleArmGrasps
 from dg16m_env.benchmark import BenchmarkObject
 from dg16m_env.submission import Submission
 
-from .context import BenchmarkRef, load_benchmark_ref
-from .registry import Evaluator, EvaluatorError, register
+from .context import BenchmarkRef
+from .registry import register
 from .result import EvaluationResult, breakdown, object_means
-from .submissions import as_submission, stacked, submission_record
+from .submissions import SubmissionEvaluator, submission_record
 
 #: Verdict of one submitted dual grasp; index = the code stored per grasp.
 REASONS = (
@@ -129,11 +128,10 @@ def _task(
 
 
 @register("fce")
-class ForceClosureEfficiency(Evaluator):
+class ForceClosureEfficiency(SubmissionEvaluator):
     """FCE of a submission (see the module docstring)."""
 
     version = "1"
-    subject_kind = "submission"
 
     def __init__(
         self,
@@ -147,15 +145,20 @@ class ForceClosureEfficiency(Evaluator):
         seed: int = 0,
         progress: bool = False,
     ) -> None:
-        check_backend(backend, workers, error=EvaluatorError)
-        self.ref = load_benchmark_ref(benchmark, mesh_root)
-        self.workers, self.backend, self.address = workers, backend, address
-        self.n_resamples, self.seed, self.progress = n_resamples, seed, progress
+        super().__init__(
+            benchmark=benchmark,
+            mesh_root=mesh_root,
+            workers=workers,
+            backend=backend,
+            address=address,
+            n_resamples=n_resamples,
+            seed=seed,
+            progress=progress,
+        )
 
     def evaluate(self, subject: Submission | str | os.PathLike[str]) -> EvaluationResult:
-        submission = as_submission(subject, self.ref)
+        submission, poses, index = self.rows(subject)
         ids = self.ref.object_ids
-        poses, index = stacked(submission, ids)
         params = self.ref.benchmark.parameters()
         force_closure = params.force_closure_kwargs()
         mesh_root = str(self.ref.mesh_root) if self.ref.mesh_root is not None else None
@@ -192,10 +195,7 @@ class ForceClosureEfficiency(Evaluator):
         for k, object_id in enumerate(ids):
             mine = codes[index == k]
             per_object[object_id]["reasons"] = _counts(mine)
-        return EvaluationResult(
-            evaluator=self.name,
-            evaluator_version=self.version,
-            package_version=package_version(),
+        return self.result(
             benchmark=self.ref.record(),
             subject=submission_record(submission),
             parameters={"force_closure": force_closure, "gripper": "panda"},

@@ -31,25 +31,23 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.io import package_version
-from dataset_gen.parallel import Backend, check_backend
+from dataset_gen.parallel import Backend
 from dg16m_env.gsr import GraspJob, evaluate_objects
 from dg16m_env.labels import LEVELS, concatenate_labels
 from dg16m_env.submission import Submission
 from dg16m_env.trial import PHASES, TrialStatus
 
-from .context import BenchmarkRef, load_benchmark_ref
-from .registry import Evaluator, EvaluatorError, register
+from .context import BenchmarkRef
+from .registry import EvaluatorError, register
 from .result import EvaluationResult, breakdown, object_means
-from .submissions import as_submission, stacked, submission_record
+from .submissions import SubmissionEvaluator, submission_record
 
 
 @register("gsr")
-class GraspSuccessRate(Evaluator):
+class GraspSuccessRate(SubmissionEvaluator):
     """GSR of a submission (see the module docstring)."""
 
     version = "1"
-    subject_kind = "submission"
 
     def __init__(
         self,
@@ -65,8 +63,16 @@ class GraspSuccessRate(Evaluator):
         seed: int = 0,
         progress: bool = False,
     ) -> None:
-        check_backend(backend, workers, error=EvaluatorError)
-        self.ref = load_benchmark_ref(benchmark, mesh_root)
+        super().__init__(
+            benchmark=benchmark,
+            mesh_root=mesh_root,
+            workers=workers,
+            backend=backend,
+            address=address,
+            n_resamples=n_resamples,
+            seed=seed,
+            progress=progress,
+        )
         self.params = self.ref.benchmark.parameters()
         spec = self.params.perturbation
         changes: dict[str, Any] = {}
@@ -78,13 +84,10 @@ class GraspSuccessRate(Evaluator):
             self.spec = replace(spec, **changes)
         except ValueError as exc:
             raise EvaluatorError(f"gsr: {exc}") from None
-        self.workers, self.backend, self.address = workers, backend, address
-        self.n_resamples, self.seed, self.progress = n_resamples, seed, progress
 
     def evaluate(self, subject: Submission | str | os.PathLike[str]) -> EvaluationResult:
-        submission = as_submission(subject, self.ref)
+        submission, poses, index = self.rows(subject)
         ids = self.ref.object_ids
-        poses, index = stacked(submission, ids)
         jobs = [
             GraspJob(
                 obj.source(self.ref.mesh_root), poses[index == k], parts=obj.parts, mass=obj.mass
@@ -127,10 +130,7 @@ class GraspSuccessRate(Evaluator):
             n_resamples=self.n_resamples,
             seed=self.seed,
         )
-        return EvaluationResult(
-            evaluator=self.name,
-            evaluator_version=self.version,
-            package_version=package_version(),
+        return self.result(
             benchmark=self.ref.record(),
             subject=submission_record(submission),
             parameters={

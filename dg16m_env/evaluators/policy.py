@@ -60,10 +60,9 @@ import numpy as np
 from tqdm import tqdm
 
 from dataset_gen.checks import check_integer
-from dataset_gen.io import package_version
 
 from .registry import Evaluator, EvaluatorError, register
-from .result import EvaluationResult
+from .result import EvaluationResult, code_subject, qualified_type
 
 #: How to list the registered environment ids.
 REGISTRY_HINT = 'python -c "import gymnasium; gymnasium.pprint_registry()"'
@@ -291,10 +290,9 @@ class PolicyEvaluator(Evaluator):
             return act, "predict"
         if callable(subject):
             return subject, "callable"
-        cls = type(subject)
         raise EvaluatorError(
             "policy: expected a callable policy(observation) -> action or an object with "
-            f".predict(observation, deterministic=...), found {cls.__module__}.{cls.__qualname__}"
+            f".predict(observation, deterministic=...), found {qualified_type(subject)}"
         )
 
     def _make_env(self) -> Any:
@@ -410,19 +408,9 @@ class PolicyEvaluator(Evaluator):
                 }
         failed = {str(i): e.detail for i, e in enumerate(episodes) if e.reason is not None}
         reasons = Counter(e.reason for e in episodes if e.reason is not None)
-        name = getattr(subject, "name", None)
-        cls = type(subject)
-        return EvaluationResult(
-            evaluator=self.name,
-            evaluator_version=self.version,
-            package_version=package_version(),
+        return self.result(
             benchmark={},
-            subject={
-                "kind": "policy",
-                "name": name if isinstance(name, str) else None,
-                "type": f"{cls.__module__}.{cls.__qualname__}",
-                "interface": interface,
-            },
+            subject=code_subject("policy", subject, interface),
             parameters={
                 "env_id": self.env_id,
                 "n_episodes": self.n_episodes,

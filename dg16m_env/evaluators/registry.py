@@ -24,6 +24,7 @@ from collections.abc import Callable
 from typing import Any, ClassVar, TypeVar
 
 from dataset_gen.errors import Dg16mError
+from dataset_gen.io import package_version
 
 from .result import EvaluationResult
 
@@ -53,6 +54,16 @@ class Evaluator(abc.ABC):
 
     def __call__(self, subject: Any) -> EvaluationResult:
         return self.evaluate(subject)
+
+    def result(self, **fields: Any) -> EvaluationResult:
+        """An :class:`EvaluationResult` of this evaluator: ``fields`` plus its name, its version
+        and the package version."""
+        return EvaluationResult(
+            evaluator=self.name,
+            evaluator_version=self.version,
+            package_version=package_version(),
+            **fields,
+        )
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(name={self.name!r}, version={self.version!r})"

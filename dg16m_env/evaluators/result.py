@@ -117,6 +117,24 @@ class EvaluationResult:
         return "\n".join(lines)
 
 
+def qualified_type(value: Any) -> str:
+    """``module.QualName`` of a value's type (what a result records of code it scored)."""
+    cls = type(value)
+    return f"{cls.__module__}.{cls.__qualname__}"
+
+
+def code_subject(kind: str, subject: Any, interface: str) -> dict[str, Any]:
+    """What a result records of code it scored (a classifier, a policy): its kind, its ``name``
+    attribute when that is a string, its type and the interface it was called through."""
+    name = getattr(subject, "name", None)
+    return {
+        "kind": kind,
+        "name": name if isinstance(name, str) else None,
+        "type": qualified_type(subject),
+        "interface": interface,
+    }
+
+
 def format_rate(value: Any) -> str:
     """``"76.3% [72.1, 80.2] (3000 rows, 300 objects)"`` for a rate dict, else the number."""
     if isinstance(value, Mapping) and "rate" in value:

@@ -1,5 +1,7 @@
-"""What the submission evaluators (``fce``, ``gsr``) take: a :class:`~dg16m_env.submission.Submission`
-in memory or a submission file, checked against the benchmark before anything is scored."""
+"""What the submission evaluators (``fce``, ``gsr``) share: their base class (the benchmark, the
+parallel backend, the confidence-interval settings) and their subject, a
+:class:`~dg16m_env.submission.Submission` in memory or a submission file, checked against the
+benchmark before anything is scored."""
 
 from __future__ import annotations
 
@@ -8,10 +10,11 @@ from typing import Any
 
 import numpy as np
 
+from dataset_gen.parallel import Backend, check_backend
 from dg16m_env.submission import Submission, read_submission
 
-from .context import BenchmarkRef
-from .registry import EvaluatorError
+from .context import BenchmarkRef, load_benchmark_ref
+from .registry import Evaluator, EvaluatorError
 
 
 def as_submission(subject: Any, ref: BenchmarkRef) -> Submission:
@@ -69,3 +72,38 @@ def stacked(submission: Submission, object_ids: list[str]) -> tuple[np.ndarray, 
     poses = [np.asarray(submission.poses[i], dtype=np.float64) for i in object_ids]
     index = np.concatenate([np.full(len(p), k, dtype=np.int64) for k, p in enumerate(poses)])
     return np.concatenate(poses), index
+
+
+class SubmissionEvaluator(Evaluator):
+    """Base of the evaluators that score a submission against a benchmark.
+
+    Subclasses keep their own keyword-only ``__init__`` (its signature is what ``make`` checks)
+    and pass these arguments on: ``benchmark`` (path or :class:`BenchmarkRef`, default the
+    embedded benchmark), ``mesh_root``, ``workers``, ``backend``, ``address``, ``n_resamples``
+    and ``seed`` (the object-resampled confidence intervals), ``progress``.
+    """
+
+    subject_kind = "submission"
+
+    def __init__(
+        self,
+        *,
+        benchmark: str | os.PathLike[str] | BenchmarkRef | None,
+        mesh_root: str | os.PathLike[str] | None,
+        workers: int,
+        backend: Backend,
+        address: str | None,
+        n_resamples: int,
+        seed: int,
+        progress: bool,
+    ) -> None:
+        check_backend(backend, workers, error=EvaluatorError)
+        self.ref = load_benchmark_ref(benchmark, mesh_root)
+        self.workers, self.backend, self.address = workers, backend, address
+        self.n_resamples, self.seed, self.progress = n_resamples, seed, progress
+
+    def rows(self, subject: Any) -> tuple[Submission, np.ndarray, np.ndarray]:
+        """The validated submission and its dual grasps in benchmark object order (``poses
+        (N, 2, 4, 4)``, ``object_index (N,)``; see :func:`as_submission`, :func:`stacked`)."""
+        submission = as_submission(subject, self.ref)
+        return (submission, *stacked(submission, self.ref.object_ids))
