@@ -131,6 +131,13 @@ def report(
     print(f"wrote {args.out}")
 
 
+def save_model(model: Any, path: Path) -> None:
+    """Save an SB3 model to ``path`` (a ``.zip``) atomically: an interrupted save leaves the
+    previous checkpoint, never half a file."""
+    with atomic_path(path) as tmp:
+        model.save(tmp)
+
+
 def write_run(path: Path, args: Any, results: dict[str, EvaluationResult], **extra: Any) -> None:
     """The run's arguments, package version, extra facts and every evaluation result (JSON)."""
     write_json_atomic(

@@ -27,7 +27,13 @@ from typing import Any
 import numpy as np
 
 import dg16m_env  # noqa: F401  registers the environments
-from baselines.sb3_common import parse_args, report, reward_curve_callback, split_objects
+from baselines.sb3_common import (
+    parse_args,
+    report,
+    reward_curve_callback,
+    save_model,
+    split_objects,
+)
 from dg16m_env.envs.dual_grasp_lift import ScriptedLiftPolicy
 from dg16m_env.evaluators import load_benchmark_ref, make
 
@@ -87,7 +93,7 @@ def main() -> None:
     started = time.perf_counter()
     model.learn(total_timesteps=args.total_timesteps, callback=curve)
     train_s = time.perf_counter() - started
-    model.save(args.out / "ppo_lift.zip")
+    save_model(model, args.out / "ppo_lift.zip")
 
     # --- evaluation on held-out objects ---------------------------------------------------------
     evaluator = make(

@@ -31,7 +31,13 @@ import gymnasium as gym
 import numpy as np
 
 import dg16m_env  # noqa: F401  registers the environments
-from baselines.sb3_common import parse_args, report, reward_curve_callback, split_objects
+from baselines.sb3_common import (
+    parse_args,
+    report,
+    reward_curve_callback,
+    save_model,
+    split_objects,
+)
 from dg16m_env.evaluators import load_benchmark_ref, make
 
 ENV_ID = "dg16m_env/DualGraspSelect-v0"
@@ -159,7 +165,7 @@ def main() -> None:
     started = time.perf_counter()
     model.learn(total_timesteps=args.total_timesteps, callback=curve)
     train_s = time.perf_counter() - started
-    model.save(args.out / "ppo_select.zip")
+    save_model(model, args.out / "ppo_select.zip")
 
     # --- evaluation on held-out objects, simulated ------------------------------------------
     wrapper = SelectForPolicy(gym.make(ENV_ID, **env_kwargs, object_ids=test_ids))

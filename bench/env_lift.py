@@ -32,7 +32,6 @@ for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUM
 
 import argparse
 import contextlib
-import json
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -42,6 +41,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from dataset_gen.atomic import write_json_atomic
 from dg16m_env.envs.dual_grasp_lift import ACTION_SIZE, DualGraspLiftEnv, ScriptedLiftPolicy
 from dg16m_env.envs.objects import BenchmarkObjects
 
@@ -246,8 +246,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{summary['scripted_successes']}/{summary['scripted_episodes']}"
     )
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({"objects": rows, "summary": summary}, indent=2))
+        write_json_atomic(args.json, {"objects": rows, "summary": summary})
     return 0
 
 

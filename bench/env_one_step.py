@@ -35,7 +35,6 @@ for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUM
     os.environ.setdefault(_name, "1")
 
 import argparse
-import json
 import statistics
 import time
 from collections.abc import Callable
@@ -44,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from dataset_gen.atomic import write_json_atomic
 from dg16m_env.envs.dual_grasp_pose import DualGraspPoseEnv
 from dg16m_env.envs.dual_grasp_select import DualGraspSelectEnv
 from dg16m_env.envs.spaces import action_from_poses
@@ -180,8 +180,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     for env in envs.values():
         env.close()
     if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(summary, indent=2) + "\n")
+        write_json_atomic(args.json, summary)
     return summary
 
 
