@@ -28,12 +28,17 @@ demo: $(STAMP)
 	$(BIN)/dg16m sim replay --row 1 --out $(DEMO)/replay.png
 	$(BIN)/dg16m baselines submissions --out $(DEMO)/submissions --strategies benchmark_fc_pass --no-progress
 	$(BIN)/dg16m evaluate $(DEMO)/submissions/benchmark_fc_pass.h5 --evaluators fce --workers 2 --out $(DEMO)/fce.json --no-progress
-	@echo "demo outputs in $(DEMO)/: objects/ (meshes, parts, manifest.json), objects.png, benchmark.png, replay.png, submissions/, fce.json"
+	$(BIN)/python scripts/leaderboard_baselines.py --db $(DEMO)/leaderboard/board.db --evaluators fce --strategies benchmark_fc_pass --workers 2 --no-progress
+	$(BIN)/dg16m leaderboard show --db $(DEMO)/leaderboard/board.db
+	$(BIN)/dg16m leaderboard render --db $(DEMO)/leaderboard/board.db --out $(DEMO)/leaderboard/site
+	@echo "demo outputs in $(DEMO)/: objects/ (meshes, parts, manifest.json), objects.png, benchmark.png, replay.png, submissions/, fce.json, leaderboard/ (board.db, site/index.html)"
 
 test: $(STAMP)
+	bash scripts/install_system_deps.sh chromium chromium-driver  # the page tests
 	$(BIN)/python -m pytest -q
 
 test-all: $(STAMP)
+	bash scripts/install_system_deps.sh chromium chromium-driver  # the page tests
 	$(BIN)/python -m pytest -q -m ""
 
 lint: $(STAMP)

@@ -199,7 +199,12 @@ def _names(text: str | None, default: str) -> list[str]:
 
 def _evaluate(args: argparse.Namespace) -> int:
     from dg16m_env import evaluators
-    from dg16m_env.evaluators import load_benchmark_ref, make, write_results
+    from dg16m_env.evaluators import (
+        load_benchmark_ref,
+        make,
+        submission_evaluators,
+        write_results,
+    )
 
     if args.list:
         for name in evaluators.names():
@@ -240,9 +245,17 @@ def _evaluate(args: argparse.Namespace) -> int:
         else:
             submission = _submission_subject(args, ref, kind, progress)
             record.update({"file": str(submission), "target": args.predictor})
-            for name in _names(args.evaluators, "fce,gsr"):
-                results[name] = make(name, **_submission_kwargs(name, args, ref, progress))
-            results = {name: ev.evaluate(submission) for name, ev in results.items()}
+            built = submission_evaluators(
+                _names(args.evaluators, "fce,gsr"),
+                ref,
+                workers=args.workers,
+                backend=args.backend,
+                address=args.address,
+                seed=args.seed,
+                n_perturbations=args.perturbations,
+                progress=progress,
+            )
+            results = {name: ev.evaluate(submission) for name, ev in built.items()}
     for result in results.values():
         print(result.format())
     print(f"scored in {time.perf_counter() - started:.1f} s")
@@ -250,29 +263,6 @@ def _evaluate(args: argparse.Namespace) -> int:
         write_results(args.out, results, record)
         print(f"wrote {args.out}")
     return 0
-
-
-def _submission_kwargs(
-    name: str, args: argparse.Namespace, ref: Any, progress: bool
-) -> dict[str, Any]:
-    from dg16m_env.evaluators import evaluator_class
-
-    if evaluator_class(name).subject_kind != "submission":
-        raise EvaluateCommandError(
-            f"--evaluators {name}: expected evaluators of submissions (e.g. fce, gsr), found one "
-            f"that scores a {evaluator_class(name).subject_kind}"
-        )
-    kwargs: dict[str, Any] = {
-        "benchmark": ref,
-        "workers": args.workers,
-        "backend": args.backend,
-        "address": args.address,
-        "seed": args.seed,
-        "progress": progress,
-    }
-    if name == "gsr" and args.perturbations is not None:
-        kwargs["n_perturbations"] = args.perturbations
-    return kwargs
 
 
 def _predictor_spec(args: argparse.Namespace) -> Any:

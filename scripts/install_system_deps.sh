@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# System libraries MuJoCo needs to render offscreen (EGL and OSMesa). Installs only what is
-# missing, and only where apt-get is available and we are root; otherwise says what to install.
+# Debian packages the project needs, installed only when missing, and only where apt-get is
+# available and we are root; otherwise says what to install.
+#   scripts/install_system_deps.sh                            MuJoCo's offscreen rendering (EGL, OSMesa)
+#   scripts/install_system_deps.sh chromium chromium-driver   the page tests' headless browser
 set -euo pipefail
-packages=(libegl1 libosmesa6)
+if [ $# -gt 0 ]; then packages=("$@"); else packages=(libegl1 libosmesa6); fi
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -13,5 +15,5 @@ if command -v apt-get >/dev/null && [ "$(id -u)" -eq 0 ]; then
   apt-get update -qq
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
 else
-  echo "warning: offscreen rendering needs: ${missing[*]} (install them with your package manager)" >&2
+  echo "warning: missing system packages: ${missing[*]} (install them with your package manager; until then what needs them is skipped or fails with a message)" >&2
 fi

@@ -221,12 +221,14 @@ def test_commands_come_from_the_entry_point_group_in_a_stable_order() -> None:
         "dg16m_env.benchmark_command:register",
         "dg16m_env.evaluate_command:register",
         "dg16m_env.sim_command:register",
+        "leaderboard.commands:register",
     ]
     parser = build_parser()
     names = list(parser._subparsers._group_actions[0].choices)  # help order
     assert names == [
         *SUBCOMMANDS[:4],
         *("generate", "stats", "verify", "baselines", "benchmark", "evaluate", "submission", "sim"),
+        "leaderboard",
     ]
 
 

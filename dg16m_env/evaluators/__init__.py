@@ -19,6 +19,7 @@ from . import classifier, fce, gsr, policy
 from .context import BenchmarkRef, load_benchmark_ref
 from .registry import Evaluator, EvaluatorError, evaluator_class, make, names, register
 from .result import EvaluationResult, ResultError, breakdown, read_results, write_results
+from .submissions import submission_evaluators
 
 __all__ = [  # the built-in modules are listed: importing them registers them
     "BenchmarkRef",
@@ -37,5 +38,6 @@ __all__ = [  # the built-in modules are listed: importing them registers them
     "policy",
     "read_results",
     "register",
+    "submission_evaluators",
     "write_results",
 ]

@@ -14,7 +14,7 @@ from dataset_gen.parallel import Backend, check_backend
 from dg16m_env.submission import Submission, read_submission
 
 from .context import BenchmarkRef, load_benchmark_ref
-from .registry import Evaluator, EvaluatorError
+from .registry import Evaluator, EvaluatorError, evaluator_class, make
 
 
 def as_submission(subject: Any, ref: BenchmarkRef) -> Submission:
@@ -107,3 +107,50 @@ class SubmissionEvaluator(Evaluator):
         (N, 2, 4, 4)``, ``object_index (N,)``; see :func:`as_submission`, :func:`stacked`)."""
         submission = as_submission(subject, self.ref)
         return (submission, *stacked(submission, self.ref.object_ids))
+
+
+def submission_evaluators(
+    names: list[str],
+    benchmark: BenchmarkRef,
+    *,
+    workers: int = 1,
+    backend: Backend = "local",
+    address: str | None = None,
+    seed: int = 0,
+    n_perturbations: int | None = None,
+    progress: bool = False,
+) -> dict[str, Evaluator]:
+    """The named evaluators of submission files, built with one set of run options (what
+    ``dg16m evaluate`` and the leaderboard's workers score with).
+
+    Args:
+        names: registered evaluator names, each of which scores a submission.
+        benchmark: the benchmark scored against.
+        workers, backend, address: the parallel backend.
+        seed: seed of the confidence intervals.
+        n_perturbations: ``gsr``'s perturbed trials per grasp (default: the benchmark's).
+        progress: progress bars.
+
+    Raises:
+        EvaluatorError: an unknown name, or an evaluator of something else.
+    """
+    out: dict[str, Evaluator] = {}
+    for name in names:
+        kind = evaluator_class(name).subject_kind
+        if kind != "submission":
+            raise EvaluatorError(
+                f"evaluators: expected evaluators of submissions (e.g. fce, gsr), found {name!r} "
+                f"that scores a {kind}"
+            )
+        kwargs: dict[str, Any] = {
+            "benchmark": benchmark,
+            "workers": workers,
+            "backend": backend,
+            "address": address,
+            "seed": seed,
+            "progress": progress,
+        }
+        if name == "gsr" and n_perturbations is not None:
+            kwargs["n_perturbations"] = n_perturbations
+        out[name] = make(name, **kwargs)
+    return out

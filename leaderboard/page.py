@@ -1,0 +1,814 @@
+"""The leaderboard's web pages: HTML rendered server-side from plain dicts ("views").
+
+Everything a reader sees is in the HTML: tables, and bar charts as inline SVG. ``board.js`` only
+adds sorting (click a column header); ``board.css`` the look. The pages hold no inline script,
+event handler or ``style`` attribute, so they work under the service's Content-Security-Policy
+(``default-src 'none'; style-src 'self'; script-src 'self'; img-src 'self' data:``) and opened
+from ``file://`` with no network (:func:`write_static`).
+
+Every string that comes from a view (team names, labels, file names, metric names, object ids,
+log lines) goes through :func:`html.escape` with ``quote=True`` before it reaches the page.
+
+The views (built by ``leaderboard.views``):
+
+* board view: ``{"title", "generated_at", "benchmark": {"sha256", "objects", ...}, "counts",
+  "evaluators": [{"name", "headline", "columns", "families", "rows": [{"rank", "submission",
+  "team", "label", "date", "metrics", "per_family", ...}]}]}``;
+* submission view: ``{"id", "team", "label", "filename", "date", "status", "file_sha256",
+  "size", "evaluators", "results": {name: EvaluationResult.to_dict()}}``, plus ``"private",
+  "error", "log", "attempts", "events"`` in a team's own view.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+import re
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from dataset_gen.atomic import write_text_atomic
+
+#: The static assets, files under ``leaderboard/static/``.
+ASSETS = ("board.css", "board.js")
+
+#: Bar colours of the charts (Okabe-Ito, distinguishable with colour-vision deficiencies).
+PALETTE = ("#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442")
+
+#: Submissions shown in an evaluator's chart (the first rows by rank).
+CHART_TOP = 5
+
+#: Longest legend entry of a chart (characters; longer ones are cut, in full in a tooltip).
+_LEGEND_CHARS = 90
+
+#: What a missing value shows.
+DASH = "\u2014"
+
+_BADGE = ' <span class="badge">headline</span>'
+_STATUSES = ("queued", "running", "scored", "failed")
+_ISO = re.compile(r"^(\d{4}-\d{2}-\d{2})T(\d{2}:\d{2})(?::\d{2}(?:\.\d+)?)?(Z|[+-]\d{2}:?\d{2})?$")
+
+
+# --------------------------------------------------------------------------------------------
+# Assets and files
+
+
+def asset_text(name: str) -> str:
+    """The content of a static asset (one of :data:`ASSETS`).
+
+    Raises:
+        ValueError: ``name`` is not one of :data:`ASSETS`.
+    """
+    if name not in ASSETS:
+        raise ValueError(f"asset: expected one of {list(ASSETS)}, found {name!r}")
+    return resources.files("leaderboard").joinpath("static", name).read_text(encoding="utf-8")
+
+
+def write_static(
+    out: Path, board_view: Mapping[str, Any], submission_views: Mapping[int, Mapping[str, Any]]
+) -> Path:
+    """Write the board as static pages that work opened from ``file://`` (no server, no network).
+
+    Writes ``out/index.html``, ``out/submissions/<id>.html`` for each submission view,
+    ``out/assets/board.css``, ``out/assets/board.js`` and ``out/board.json`` (the board view),
+    each file atomically.
+
+    Args:
+        out: the folder (created when missing).
+        board_view: the board view.
+        submission_views: submission id -> its submission view.
+
+    Returns:
+        ``out``.
+
+    Raises:
+        ValueError: a submission id is not an integer.
+    """
+    out = Path(out)
+    pages = {_submission_id(key): view for key, view in submission_views.items()}
+    for name in ASSETS:
+        write_text_atomic(out / "assets" / name, asset_text(name))
+    for submission, view in sorted(pages.items()):
+        write_text_atomic(
+            out / "submissions" / f"{submission}.html",
+            render_submission(view, board_link="../index.html", assets="../assets/"),
+        )
+    write_text_atomic(
+        out / "index.html",
+        render_index(board_view, link=lambda i: f"submissions/{i}.html", assets="assets/"),
+    )
+    write_text_atomic(
+        out / "board.json", json.dumps(board_view, indent=1, sort_keys=True, allow_nan=False) + "\n"
+    )
+    return out
+
+
+def _submission_id(key: Any) -> int:
+    """A submission id as an int (it names a file, so nothing else is accepted)."""
+    if isinstance(key, bool):
+        raise ValueError(f"submission id: expected an integer, found {key!r}")
+    if isinstance(key, int):
+        return key
+    if isinstance(key, str) and key.isascii() and key.isdigit():
+        return int(key)
+    raise ValueError(f"submission id: expected an integer, found {key!r}")
+
+
+# --------------------------------------------------------------------------------------------
+# Small formatting helpers
+
+
+def _e(value: Any) -> str:
+    """``value`` as text, escaped for HTML text and attribute values."""
+    return html.escape("" if value is None else str(value), quote=True)
+
+
+def _is_number(value: Any) -> bool:
+    """A finite int or float (not a bool)."""
+    return (
+        isinstance(value, (int, float))
+        and not isinstance(value, bool)
+        and math.isfinite(float(value))
+    )
+
+
+def _is_rate(value: Any) -> bool:
+    """A rate dict (``{"rate", "ci_low", "ci_high", ...}``)."""
+    return isinstance(value, Mapping) and "rate" in value
+
+
+def _number_text(value: Any) -> str:
+    """An int as is, a float with 4 significant digits."""
+    if isinstance(value, int):
+        return str(value)
+    return f"{float(value):.4g}"
+
+
+def _percent(value: float) -> str:
+    return f"{100 * float(value):.1f}"
+
+
+def _rate_of(value: Any) -> float | None:
+    """The rate (or plain number) of a metric value; None when absent."""
+    if _is_rate(value):
+        rate = value.get("rate")
+        return float(rate) if _is_number(rate) else None
+    return float(value) if _is_number(value) else None
+
+
+def _value_cell(value: Any, *, cls: str = "num") -> str:
+    """A ``<td>`` for a metric value: a rate dict as ``76.3% [72.1, 80.2]``, a number with 4
+    significant digits, anything absent as a dash; ``data-value`` is the number ("" if none)."""
+    if _is_rate(value):
+        rate = value.get("rate")
+        if not _is_number(rate):
+            return f'<td class="{cls} missing" data-value="">{DASH}</td>'
+        low, high = value.get("ci_low"), value.get("ci_high")
+        ci = (
+            f' <span class="ci">[{_percent(low)}, {_percent(high)}]</span>'
+            if _is_number(low) and _is_number(high)
+            else ""
+        )
+        return f'<td class="{cls}" data-value="{float(rate)!r}">{_percent(rate)}%{ci}</td>'
+    if _is_number(value):
+        return f'<td class="{cls}" data-value="{value!r}">{_e(_number_text(value))}</td>'
+    if isinstance(value, bool):
+        return f'<td class="{cls}" data-value="{int(value)}">{"yes" if value else "no"}</td>'
+    if isinstance(value, Mapping):
+        text = ", ".join(f"{k} {_plain(v)}" for k, v in value.items())
+        return f'<td class="text" data-value="{_e(text)}">{_e(text)}</td>'
+    if isinstance(value, str):
+        return f'<td class="text" data-value="{_e(value)}">{_e(value)}</td>'
+    return f'<td class="{cls} missing" data-value="">{DASH}</td>'
+
+
+def _plain(value: Any) -> str:
+    """A short text for any JSON value (numbers with 4 significant digits)."""
+    if value is None:
+        return DASH
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if _is_number(value):
+        return _number_text(value)
+    if isinstance(value, str):
+        return value
+    return json.dumps(value, sort_keys=True, default=str)
+
+
+def _exact(value: Any) -> str:
+    """A JSON value shown exactly (parameters, seeds, records): strings as is, else JSON."""
+    if isinstance(value, str):
+        return value
+    return json.dumps(value, sort_keys=True, default=str)
+
+
+def _date_text(value: Any) -> str:
+    """``2026-11-30T06:10:00Z`` as ``2026-11-30 06:10 UTC``; other text unchanged."""
+    text = "" if value is None else str(value)
+    match = _ISO.match(text)
+    if not match:
+        return text or DASH
+    day, minute, zone = match.groups()
+    zone = "UTC" if zone in (None, "Z", "+00:00", "+0000") else zone
+    return f"{day} {minute} {zone}"
+
+
+def _time(value: Any) -> str:
+    """A ``<time>`` element for an ISO date (plain text when it is not one)."""
+    if value is None or value == "":
+        return DASH
+    return f'<time datetime="{_e(value)}">{_e(_date_text(value))}</time>'
+
+
+def _size_text(size: Any) -> str:
+    """``123456`` as ``120.6 KiB (123,456 bytes)``."""
+    if not _is_number(size):
+        return DASH
+    size = int(size)
+    value, unit = float(size), "bytes"
+    for next_unit in ("KiB", "MiB", "GiB", "TiB"):
+        if value < 1024:
+            break
+        value, unit = value / 1024, next_unit
+    if unit == "bytes":
+        return f"{size:,} bytes"
+    return f"{value:.1f} {unit} ({size:,} bytes)"
+
+
+def _slug(value: Any) -> str:
+    """An id-friendly form of a name (letters, digits, ``-``, ``_``, ``.``), escaped."""
+    text = re.sub(r"[^A-Za-z0-9_.-]+", "-", str(value)).strip("-") or "x"
+    return _e(text)
+
+
+def _flatten(record: Any, prefix: str = "") -> list[tuple[str, Any]]:
+    """Nested mappings as ``(dotted.key, value)`` pairs (other values are leaves)."""
+    if isinstance(record, Mapping) and (record or not prefix):
+        pairs: list[tuple[str, Any]] = []
+        for key, value in record.items():
+            pairs += _flatten(value, f"{prefix}.{key}" if prefix else str(key))
+        return pairs
+    return [(prefix, record)]
+
+
+def _sortable_th(label: str, kind: str, *, first: str | None = None, sort: str = "") -> str:
+    """A header cell ``board.js`` sorts by (``label`` is already HTML)."""
+    extra = f' data-first="{first}"' if first else ""
+    extra += f' aria-sort="{sort}"' if sort else ""
+    return f'<th scope="col" data-sort="{kind}"{extra}>{label}</th>'
+
+
+def _page(title: str, assets: str, body: str, *, page_class: str) -> str:
+    """A whole HTML document around ``body`` (``title`` is plain text)."""
+    return (
+        "<!DOCTYPE html>\n"
+        '<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+        '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
+        '<meta name="color-scheme" content="light dark">\n'
+        f"<title>{_e(title)}</title>\n"
+        '<link rel="icon" href="data:,">\n'
+        f'<link rel="stylesheet" href="{_e(assets)}board.css">\n'
+        f'<script src="{_e(assets)}board.js" defer></script>\n'
+        f'</head>\n<body class="{page_class}">\n{body}</body>\n</html>\n'
+    )
+
+
+def _kv_table(pairs: Iterable[tuple[str, Any]], *, cls: str = "kv") -> str:
+    """A small key/value table (values shown exactly)."""
+    rows = "".join(
+        f'<tr><th scope="row">{_e(key)}</th><td><code>{_e(_exact(value))}</code></td></tr>\n'
+        for key, value in pairs
+    )
+    if not rows:
+        return '<p class="none">none</p>\n'
+    return f'<table class="{cls}">\n<tbody>\n{rows}</tbody>\n</table>\n'
+
+
+# --------------------------------------------------------------------------------------------
+# The board (index page)
+
+
+def render_index(view: Mapping[str, Any], *, link: Callable[[int], str], assets: str) -> str:
+    """The leaderboard page: one sortable table and one per-family chart per evaluator.
+
+    Args:
+        view: the board view.
+        link: submission id -> href of its detail page.
+        assets: prefix of the CSS and JS hrefs (e.g. ``"assets/"``).
+    """
+    title = str(view.get("title") or "leaderboard")
+    evaluators: Sequence[Mapping[str, Any]] = view.get("evaluators") or []
+    parts = [f'<header class="top">\n<h1>{_e(title)}</h1>\n']
+    parts.append(_benchmark_line(view.get("benchmark") or {}, view.get("generated_at")))
+    parts.append(_counts_line(view.get("counts") or {}))
+    if evaluators:
+        links = " ".join(
+            f'<a href="#ev-{_slug(ev.get("name"))}">{_e(ev.get("name"))}</a>' for ev in evaluators
+        )
+        parts.append(f'<nav class="evaluators" aria-label="Evaluators">{links}</nav>\n')
+    parts.append("</header>\n<main>\n")
+    if not evaluators:
+        parts.append('<p class="empty">No evaluators yet.</p>\n')
+    for ev in evaluators:
+        parts.append(_evaluator_section(ev, link))
+    parts.append("</main>\n")
+    parts.append(
+        "<footer><p>Rates are means over rows; the bracket is the 95% confidence interval from "
+        "resampling objects. A dash: no score.</p></footer>\n"
+    )
+    return _page(title, assets, "".join(parts), page_class="board-page")
+
+
+def _benchmark_line(benchmark: Mapping[str, Any], generated_at: Any) -> str:
+    sha = str(benchmark.get("sha256") or "")
+    bits = []
+    if sha:
+        bits.append(f'benchmark <code title="{_e(sha)}">{_e(sha[:12])}</code>')
+    if benchmark.get("objects") is not None:
+        bits.append(f"{_e(benchmark.get('objects'))} objects")
+    if benchmark.get("embedded"):
+        bits.append("embedded")
+    if generated_at:
+        bits.append(f"generated {_time(generated_at)}")
+    return f'<p class="benchmark">{" · ".join(bits) or DASH}</p>\n'
+
+
+def _counts_line(counts: Mapping[str, Any]) -> str:
+    order = ("teams", "submissions", "scored", "queued", "running", "failed")
+    keys = [k for k in order if k in counts] + sorted(k for k in counts if k not in order)
+    bits = [f'<span class="count count-{_slug(k)}">{_e(counts[k])} {_e(k)}</span>' for k in keys]
+    return f'<p class="counts">{" · ".join(bits)}</p>\n' if bits else ""
+
+
+def _evaluator_section(ev: Mapping[str, Any], link: Callable[[int], str]) -> str:
+    name = str(ev.get("name") or "")
+    slug = _slug(name)
+    headline = ev.get("headline")
+    columns = [str(c) for c in ev.get("columns") or []]
+    rows: Sequence[Mapping[str, Any]] = ev.get("rows") or []
+    parts = [
+        f'<section id="ev-{slug}" class="evaluator">\n<h2>{_e(name)}</h2>\n',
+        f'<p class="headline">Ranked by <strong>{_e(headline)}</strong>.'
+        ' <span class="hint">Click a column header to sort.</span></p>\n'
+        if headline
+        else "",
+    ]
+    if not rows:
+        parts.append('<p class="empty">No scored submissions yet.</p>\n</section>\n')
+        return "".join(parts)
+    head = [
+        _sortable_th("Rank", "number", sort="ascending"),
+        _sortable_th("Team", "text"),
+        _sortable_th("Submission", "text"),
+    ]
+    head += [
+        _sortable_th(_e(c) + (_BADGE if c == headline else ""), "number", first="descending")
+        for c in columns
+    ]
+    head.append(_sortable_th("Date", "text", first="descending"))
+    body = []
+    for row in rows:
+        submission = row.get("submission")
+        metrics = row.get("metrics") or {}
+        cells = [
+            f'<td class="num rank" data-value="{_e(row.get("rank"))}">{_e(row.get("rank"))}</td>',
+            f'<td class="team" data-value="{_e(row.get("team"))}">{_e(row.get("team"))}</td>',
+            f'<td class="submission" data-value="{_e(row.get("label"))}">'
+            f'<a href="{_e(link(submission))}">{_e(row.get("label"))}</a> '
+            f'<span class="id">#{_e(submission)}</span></td>',
+        ]
+        cells += [_value_cell(metrics.get(c)) for c in columns]
+        cells.append(
+            f'<td class="date" data-value="{_e(row.get("date"))}">{_time(row.get("date"))}</td>'
+        )
+        body.append(f'<tr data-submission="{_e(submission)}">{"".join(cells)}</tr>\n')
+    parts.append(
+        f'<div class="scroll">\n<table class="board" id="table-{slug}">\n'
+        f"<thead>\n<tr>{''.join(head)}</tr>\n</thead>\n<tbody>\n{''.join(body)}</tbody>\n"
+        "</table>\n</div>\n"
+    )
+    parts.append(_family_chart(ev, rows[:CHART_TOP]))
+    parts.append("</section>\n")
+    return "".join(parts)
+
+
+def _family_chart(ev: Mapping[str, Any], rows: Sequence[Mapping[str, Any]]) -> str:
+    """An inline SVG bar chart: the headline rate per family (with its confidence interval as a
+    whisker) of each of ``rows``; one group per family, one bar per submission, y from 0 to 100 %.
+    Without families, one group of the overall headline rate."""
+    name = str(ev.get("name") or "")
+    headline = str(ev.get("headline") or "")
+    families = [str(f) for f in ev.get("families") or []]
+    if families:
+        groups = [
+            (family, [((r.get("per_family") or {}).get(family) or {}).get(headline) for r in rows])
+            for family in families
+        ]
+    else:
+        groups = [("overall", [(r.get("metrics") or {}).get(headline) for r in rows])]
+    n_bars = max(len(rows), 1)
+    plot_w_target = 860.0
+    group_pad = 18.0
+    bar_w = max(5.0, min(28.0, (plot_w_target / len(groups) - group_pad) / n_bars))
+    group_w = bar_w * n_bars + group_pad
+    left, right, top, plot_h, axis_h = 56.0, 16.0, 16.0, 220.0, 44.0
+    legend_top = top + plot_h + axis_h
+    legend_line = 20.0
+    legends = [
+        f"{r.get('rank')}. {r.get('label')} ({r.get('team')}) #{r.get('submission')}" for r in rows
+    ]
+    longest = max((min(len(t), _LEGEND_CHARS) for t in legends), default=0)
+    plot_right = left + group_w * len(groups)
+    width = max(plot_right, left + 18.0 + 6.8 * longest) + right
+    height = legend_top + legend_line * len(rows) + 8.0
+
+    def y_of(rate: float) -> float:
+        return top + plot_h * (1.0 - min(max(rate, 0.0), 1.0))
+
+    chart_id = f"chart-{_slug(name)}"
+    title = f"{name}: {headline} by family, top {len(rows)} submissions"
+    out = [
+        f'<figure class="chart">\n<svg class="bars" id="{chart_id}" role="img" '
+        f'aria-labelledby="{chart_id}-title" viewBox="0 0 {width:.0f} {height:.0f}" '
+        f'width="{width:.0f}" height="{height:.0f}" xmlns="http://www.w3.org/2000/svg">\n'
+        f'<title id="{chart_id}-title">{_e(title)}</title>\n'
+    ]
+    for tick in (0, 25, 50, 75, 100):
+        y = y_of(tick / 100)
+        out.append(
+            f'<line class="grid" x1="{left:.1f}" x2="{plot_right:.1f}" y1="{y:.1f}" '
+            f'y2="{y:.1f}" stroke="#ccc" stroke-width="1"/>'
+            f'<text class="tick" x="{left - 6:.1f}" y="{y + 4:.1f}" text-anchor="end" '
+            f'font-size="11" fill="currentColor">{tick}%</text>\n'
+        )
+    out.append(
+        f'<text class="axis-title" x="14" y="{top + plot_h / 2:.1f}" text-anchor="middle" '
+        f'font-size="11" fill="currentColor" transform="rotate(-90 14 {top + plot_h / 2:.1f})">'
+        f"{_e(headline)} (%)</text>\n"
+    )
+    for g, (family, values) in enumerate(groups):
+        x0 = left + g * group_w + group_pad / 2
+        for b, value in enumerate(values):
+            row = rows[b]
+            x = x0 + b * bar_w
+            colour = PALETTE[b % len(PALETTE)]
+            rate = _rate_of(value)
+            who = f"{row.get('label')} ({row.get('team')}, #{row.get('submission')})"
+            if rate is None:
+                out.append(
+                    f'<text class="missing" x="{x + bar_w / 2:.1f}" y="{top + plot_h - 3:.1f}" '
+                    f'text-anchor="middle" font-size="10" fill="currentColor">{DASH}'
+                    f"<title>{_e(who)}, {_e(family)}: no score</title></text>\n"
+                )
+                continue
+            y = y_of(rate)
+            tip = f"{who}, {family}: {_percent(rate)}%"
+            whisker = ""
+            if (
+                _is_rate(value)
+                and _is_number(value.get("ci_low"))
+                and _is_number(value.get("ci_high"))
+            ):
+                lo, hi = y_of(float(value["ci_low"])), y_of(float(value["ci_high"]))
+                tip += f" [{_percent(value['ci_low'])}, {_percent(value['ci_high'])}]"
+                cx, cap = x + bar_w / 2, max(bar_w / 4, 1.5)
+                whisker = (
+                    f'<g class="whisker" stroke="#222" stroke-width="1.2">'
+                    f'<line x1="{cx:.1f}" x2="{cx:.1f}" y1="{lo:.1f}" y2="{hi:.1f}"/>'
+                    f'<line x1="{cx - cap:.1f}" x2="{cx + cap:.1f}" y1="{lo:.1f}" y2="{lo:.1f}"/>'
+                    f'<line x1="{cx - cap:.1f}" x2="{cx + cap:.1f}" y1="{hi:.1f}" y2="{hi:.1f}"/>'
+                    "</g>"
+                )
+            out.append(
+                f'<rect class="bar bar-{b}" x="{x + 0.5:.1f}" y="{y:.1f}" '
+                f'width="{max(bar_w - 1, 1):.1f}" height="{top + plot_h - y:.1f}" '
+                f'fill="{colour}"><title>{_e(tip)}</title></rect>{whisker}\n'
+            )
+        cx = x0 + bar_w * n_bars / 2
+        lines = "".join(
+            f'<tspan x="{cx:.1f}" dy="{0 if k == 0 else 13}">{_e(line)}</tspan>'
+            for k, line in enumerate(_label_lines(family, max(4, int(group_w / 6.3)), 2))
+        )
+        out.append(
+            f'<text class="family" x="{cx:.1f}" y="{top + plot_h + 16:.1f}" '
+            f'text-anchor="middle" font-size="11" fill="currentColor">{lines}'
+            f"<title>{_e(family)}</title></text>\n"
+        )
+    out.append(
+        f'<line class="axis" x1="{left:.1f}" x2="{plot_right:.1f}" y1="{top + plot_h:.1f}" '
+        f'y2="{top + plot_h:.1f}" stroke="currentColor" stroke-width="1"/>\n'
+    )
+    for b, text in enumerate(legends):
+        y = legend_top + b * legend_line
+        short = text if len(text) <= _LEGEND_CHARS else text[: _LEGEND_CHARS - 1] + "\u2026"
+        out.append(
+            f'<g class="legend"><rect x="{left:.1f}" y="{y:.1f}" width="12" height="12" '
+            f'fill="{PALETTE[b % len(PALETTE)]}"/><text x="{left + 18:.1f}" y="{y + 10:.1f}" '
+            f'font-size="12" fill="currentColor">{_e(short)}<title>{_e(text)}</title></text></g>\n'
+        )
+    out.append("</svg>\n")
+    caption = (
+        f"{_e(headline)} per family of the top {len(rows)} submissions; whiskers: 95% "
+        "confidence intervals."
+    )
+    out.append(f"<figcaption>{caption}</figcaption>\n</figure>\n")
+    return "".join(out)
+
+
+def _label_lines(text: str, width: int, max_lines: int) -> list[str]:
+    """``text`` in at most ``max_lines`` lines of about ``width`` characters, broken after
+    ``_``, ``-`` or spaces where possible; what does not fit is cut with an ellipsis."""
+    lines: list[str] = []
+    rest = text
+    while rest and len(lines) < max_lines:
+        if len(rest) <= width:
+            lines.append(rest)
+            rest = ""
+            break
+        cut = max((rest.rfind(c, 1, width + 1) for c in "_- "), default=-1)
+        cut = cut + 1 if cut > 0 else width
+        lines.append(rest[:cut].rstrip())
+        rest = rest[cut:].lstrip()
+    if rest:
+        lines[-1] = lines[-1][: max(width - 1, 1)] + "\u2026"
+    return lines
+
+
+# --------------------------------------------------------------------------------------------
+# A submission's page
+
+
+def render_submission(view: Mapping[str, Any], *, board_link: str, assets: str) -> str:
+    """A submission's detail page: its record, then each evaluator's full result (metrics,
+    parameters, seeds, benchmark, per-family and per-object tables, failures); with the team's
+    private view (``"private"`` in ``view``) also the error, the events and the log.
+
+    Args:
+        view: the submission view.
+        board_link: href back to the board.
+        assets: prefix of the CSS and JS hrefs (e.g. ``"../assets/"``).
+    """
+    submission = view.get("id")
+    label = str(view.get("label") or view.get("filename") or f"#{submission}")
+    results: Mapping[str, Mapping[str, Any]] = view.get("results") or {}
+    evaluators = list(view.get("evaluators") or [])
+    evaluators += [name for name in results if name not in evaluators]
+    status = str(view.get("status") or "")
+    status_cls = status if status in _STATUSES else "other"
+    parts = [
+        f'<nav class="back"><a href="{_e(board_link)}">\u2190 Back to the board</a></nav>\n',
+        '<header class="top">\n',
+        f'<h1>{_e(label)} <span class="id">#{_e(submission)}</span></h1>\n',
+        f'<p class="meta"><span class="team">{_e(view.get("team"))}</span> · '
+        f'<span class="status status-{status_cls}">{_e(status or DASH)}</span> · '
+        f"{_time(view.get('date'))}</p>\n",
+        "</header>\n<main>\n",
+        '<section class="record">\n<h2>Submission</h2>\n',
+        _record_table(view, results),
+        "</section>\n",
+    ]
+    if "private" in view:
+        parts.append(_private_section(view))
+    if not evaluators:
+        parts.append('<p class="empty">No evaluators.</p>\n')
+    for name in evaluators:
+        result = results.get(name)
+        if result is None:
+            if status in ("queued", "running"):
+                why = f"Not scored yet ({status})."
+            elif status == "failed":
+                why = "No result: the evaluation failed."
+            else:
+                why = "No result."
+            parts.append(
+                f'<section id="ev-{_slug(name)}" class="evaluator">\n<h2>{_e(name)}</h2>\n'
+                f'<p class="empty">{_e(why)}</p>\n</section>\n'
+            )
+        else:
+            parts.append(_result_section(str(name), result))
+    parts.append("</main>\n")
+    title = f"{label} #{submission} · {view.get('team') or ''}".rstrip(" ·")
+    return _page(title, assets, "".join(parts), page_class="submission-page")
+
+
+def _record_table(view: Mapping[str, Any], results: Mapping[str, Mapping[str, Any]]) -> str:
+    shas = []
+    benchmark = view.get("benchmark")
+    if isinstance(benchmark, Mapping) and benchmark.get("sha256"):
+        shas.append(str(benchmark["sha256"]))
+    for result in results.values():
+        sha = (result.get("benchmark") or {}).get("sha256")
+        if sha and str(sha) not in shas:
+            shas.append(str(sha))
+    rows = [
+        ("Team", _e(view.get("team"))),
+        ("Label", _e(view.get("label"))),
+        ("File", f"<code>{_e(view.get('filename'))}</code>"),
+        ("File sha256", f'<code class="sha">{_e(view.get("file_sha256") or DASH)}</code>'),
+        ("Size", _e(_size_text(view.get("size")))),
+        ("Date", _time(view.get("date"))),
+        ("Status", _e(view.get("status") or DASH)),
+        (
+            "Benchmark sha256",
+            "<br>".join(f'<code class="sha">{_e(s)}</code>' for s in shas) or DASH,
+        ),
+        ("Evaluators", _e(", ".join(str(n) for n in view.get("evaluators") or []) or DASH)),
+    ]
+    body = "".join(f'<tr><th scope="row">{k}</th><td>{v}</td></tr>\n' for k, v in rows)
+    return f'<table class="kv record">\n<tbody>\n{body}</tbody>\n</table>\n'
+
+
+def _private_section(view: Mapping[str, Any]) -> str:
+    error = view.get("error")
+    parts = ['<section class="private">\n<h2>Processing (visible to your team only)</h2>\n']
+    if error:
+        parts.append(f'<p class="error"><strong>Error:</strong> {_e(error)}</p>\n')
+    else:
+        parts.append('<p class="ok">No error.</p>\n')
+    if view.get("attempts") is not None:
+        parts.append(f'<p class="attempts">Attempts: {_e(view.get("attempts"))}</p>\n')
+    events: Sequence[Mapping[str, Any]] = view.get("events") or []
+    if events:
+        body = "".join(
+            f"<tr><td>{_time(ev.get('at'))}</td><td>{_e(ev.get('state'))}</td>"
+            f"<td><code>{_e(ev.get('worker') or DASH)}</code></td>"
+            f"<td>{_e(ev.get('message') or '')}</td></tr>\n"
+            for ev in events
+        )
+        parts.append(
+            '<h3>Events</h3>\n<table class="events">\n<thead><tr><th scope="col">At</th>'
+            '<th scope="col">State</th><th scope="col">Worker</th><th scope="col">Message</th>'
+            f"</tr></thead>\n<tbody>\n{body}</tbody>\n</table>\n"
+        )
+    log = view.get("log")
+    parts.append("<h3>Log</h3>\n")
+    parts.append(f'<pre class="log">{_e(log)}</pre>\n' if log else '<p class="none">empty</p>\n')
+    parts.append("</section>\n")
+    return "".join(parts)
+
+
+def _result_section(name: str, result: Mapping[str, Any]) -> str:
+    slug = _slug(name)
+    headline = str(result.get("headline") or "")
+    metrics: Mapping[str, Any] = result.get("metrics") or {}
+    parts = [
+        f'<section id="ev-{slug}" class="evaluator">\n',
+        f"<h2>{_e(result.get('evaluator') or name)} "
+        f'<span class="version">v{_e(result.get("evaluator_version"))}</span></h2>\n',
+        f'<p class="meta">dg16m <span class="package-version">'
+        f"{_e(result.get('package_version'))}</span> · headline "
+        f"<strong>{_e(headline)}</strong>: {_headline_text(metrics.get(headline))}</p>\n",
+        "<h3>Metrics</h3>\n",
+        _metrics_table(metrics, headline),
+        '<div class="records">\n',
+        f"<div><h3>Parameters</h3>\n{_kv_table(_flatten(result.get('parameters') or {}))}</div>\n",
+        f"<div><h3>Seeds</h3>\n{_kv_table(_flatten(result.get('seeds') or {}))}</div>\n",
+        f"<div><h3>Benchmark</h3>\n{_kv_table(_flatten(result.get('benchmark') or {}))}</div>\n",
+        f"<div><h3>Subject</h3>\n{_kv_table(_flatten(result.get('subject') or {}))}</div>\n",
+        "</div>\n",
+    ]
+    per_family: Mapping[str, Mapping[str, Any]] = result.get("per_family") or {}
+    if per_family:
+        parts.append("<h3>Per family</h3>\n")
+        parts.append(_per_family_table(slug, per_family, headline))
+    per_object: Mapping[str, Mapping[str, Any]] = result.get("per_object") or {}
+    failures: Mapping[str, Any] = result.get("failures") or {}
+    if per_object:
+        parts.append(f"<h3>Per object ({len(per_object)})</h3>\n")
+        rates = [m for m, v in metrics.items() if _is_rate(v)]
+        parts.append(_per_object_table(slug, per_object, failures, rates))
+    if failures:
+        items = "".join(
+            f"<li><code>{_e(k)}</code>: {_e(v)}</li>\n" for k, v in sorted(failures.items())
+        )
+        parts.append(
+            f"<h3>Failures ({len(failures)})</h3>\n"
+            "<p>These objects could not be scored; their grasps count as failures.</p>\n"
+            f'<ul class="failures">\n{items}</ul>\n'
+        )
+    details = result.get("details") or {}
+    if details:
+        parts.append(f"<details>\n<summary>Details</summary>\n{_kv_table(_flatten(details))}")
+        parts.append("</details>\n")
+    parts.append("</section>\n")
+    return "".join(parts)
+
+
+def _headline_text(value: Any) -> str:
+    if _is_rate(value):
+        rate = value.get("rate")
+        if not _is_number(rate):
+            return DASH
+        text = f"{_percent(rate)}%"
+        if _is_number(value.get("ci_low")) and _is_number(value.get("ci_high")):
+            text += f" [{_percent(value['ci_low'])}, {_percent(value['ci_high'])}]"
+        return _e(text)
+    return _e(_plain(value))
+
+
+def _metrics_table(metrics: Mapping[str, Any], headline: str) -> str:
+    rows = []
+    for metric, value in metrics.items():
+        badge = _BADGE if metric == headline else ""
+        count = [value.get("rows"), value.get("objects")] if _is_rate(value) else [None, None]
+        counts = "".join(
+            f'<td class="num" data-value="{_e(c) if _is_number(c) else ""}">'
+            f"{_e(c) if _is_number(c) else DASH}</td>"
+            for c in count
+        )
+        rows.append(
+            f'<tr data-metric="{_e(metric)}"><th scope="row">{_e(metric)}{badge}</th>'
+            f"{_value_cell(value)}{counts}</tr>\n"
+        )
+    if not rows:
+        return '<p class="none">none</p>\n'
+    return (
+        '<table class="metrics">\n<thead><tr><th scope="col">Metric</th>'
+        '<th scope="col">Rate [95% CI]</th><th scope="col">Rows</th>'
+        f'<th scope="col">Objects</th></tr></thead>\n<tbody>\n{"".join(rows)}</tbody>\n</table>\n'
+    )
+
+
+def _per_family_table(slug: str, per_family: Mapping[str, Mapping[str, Any]], headline: str) -> str:
+    names: list[str] = []
+    for entry in per_family.values():
+        names += [str(m) for m in entry if str(m) not in names]
+    if headline in names:
+        names.remove(headline)
+        names.insert(0, headline)
+    head = _sortable_th("Family", "text", sort="ascending") + "".join(
+        _sortable_th(_e(m), "number", first="descending") for m in names
+    )
+    head += _sortable_th("Objects", "number", first="descending")
+    body = []
+    for family, entry in per_family.items():
+        objects = next(
+            (
+                v.get("objects")
+                for v in entry.values()
+                if _is_rate(v) and _is_number(v.get("objects"))
+            ),
+            None,
+        )
+        cells = "".join(_value_cell(entry.get(m)) for m in names)
+        body.append(
+            f'<tr data-family="{_e(family)}"><td class="text" data-value="{_e(family)}">'
+            f"{_e(family)}</td>{cells}{_value_cell(objects)}</tr>\n"
+        )
+    return (
+        f'<div class="scroll">\n<table class="sortable families" id="families-{slug}">\n'
+        f"<thead><tr>{head}</tr></thead>\n<tbody>\n{''.join(body)}</tbody>\n</table>\n</div>\n"
+    )
+
+
+def _object_cell(value: Any, is_rate: bool) -> str:
+    """A per-object value: a mean of a rate metric as a percentage, anything else as
+    :func:`_value_cell` shows it."""
+    if is_rate and _is_number(value):
+        return f'<td class="num" data-value="{float(value)!r}">{_percent(value)}%</td>'
+    return _value_cell(value)
+
+
+def _per_object_table(
+    slug: str,
+    per_object: Mapping[str, Mapping[str, Any]],
+    failures: Mapping[str, Any],
+    rates: Iterable[str],
+) -> str:
+    """One sortable row per object; columns ``grasps`` then every other key of the entries
+    (the means of the metrics in ``rates`` shown as percentages)."""
+    rates = set(rates)
+    names = ["grasps"]
+    for entry in per_object.values():
+        names += [str(m) for m in entry if str(m) not in names]
+    head = _sortable_th("Object", "text", sort="ascending") + "".join(
+        _sortable_th(_e(m), "number", first="descending")
+        if all(
+            _is_number(e.get(m)) or _is_rate(e.get(m)) or e.get(m) is None
+            for e in per_object.values()
+        )
+        else _sortable_th(_e(m), "text")
+        for m in names
+    )
+    body = []
+    for object_id, entry in per_object.items():
+        failed = object_id in failures
+        note = (
+            f' <span class="badge failed" title="{_e(failures[object_id])}">failed</span>'
+            if failed
+            else ""
+        )
+        cells = "".join(_object_cell(entry.get(m), m in rates) for m in names)
+        row_class = ' class="failed"' if failed else ""
+        body.append(
+            f'<tr data-object="{_e(object_id)}"{row_class}>'
+            f'<td class="text" data-value="{_e(object_id)}"><code>{_e(object_id)}</code>{note}</td>'
+            f"{cells}</tr>\n"
+        )
+    return (
+        f'<div class="scroll tall">\n<table class="sortable objects" id="objects-{slug}">\n'
+        f"<thead><tr>{head}</tr></thead>\n<tbody>\n{''.join(body)}</tbody>\n</table>\n</div>\n"
+    )

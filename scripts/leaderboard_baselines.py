@@ -1,0 +1,101 @@
+"""Put the reference submissions on a leaderboard, so that the board is never empty.
+
+    python scripts/leaderboard_baselines.py --db runs/leaderboard/board.db --workers 2
+
+For the board's benchmark, writes the reference submissions of ``dg16m baselines submissions``
+(random, farthest and force-closure pairing, the paper's Table III, and the benchmark's own
+passing pairs) next to the database, adds the team ``baselines`` when it is missing (its token
+goes to ``baselines.token`` beside the database, mode 0600), then submits each file and scores it
+in this process (or only queues it with ``--queue-only``, for running workers). A file the team
+already submitted is skipped, so running the script again is harmless.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from baselines.commands import DEFAULT_STRATEGIES
+from baselines.reference_submissions import parse_strategies, write_reference_submissions
+from leaderboard.board import Board, DuplicateError, NotFoundError
+from leaderboard.worker import WorkerOptions, score_claim, worker_name
+
+TEAM = "baselines"
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--db", type=Path, default=Path("runs/leaderboard/board.db"))
+    parser.add_argument("--benchmark", type=Path, default=None, help="a new board's benchmark")
+    parser.add_argument("--evaluators", default=None, help="default: the board's")
+    parser.add_argument("--strategies", default=",".join(DEFAULT_STRATEGIES))
+    parser.add_argument("--k", type=int, default=10, help="dual grasps per object (10)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--workers", type=int, default=1, help="local processes")
+    parser.add_argument("--queue-only", action="store_true", help="queue; leave scoring to workers")
+    parser.add_argument("--no-progress", action="store_true")
+    return parser.parse_args(argv)
+
+
+def baselines_team(board: Board, db: Path) -> object:
+    """The team ``baselines``, added (with its token saved beside the database) if missing."""
+    try:
+        return board.team(TEAM)
+    except NotFoundError:
+        team, token = board.add_team(TEAM)
+        path = db.parent / f"{TEAM}.token"
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        with os.fdopen(fd, "w") as handle:
+            handle.write(token + "\n")
+        print(f"added team {TEAM} (token in {path})")
+        return team
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parse_args(argv)
+    board = Board(args.db, benchmark=args.benchmark)
+    ref = board.benchmark_ref()
+    out = args.db.parent / "reference"
+    started = time.perf_counter()
+    paths = write_reference_submissions(
+        out,
+        benchmark=ref,
+        mesh_root=ref.mesh_root,
+        k=args.k,
+        seed=args.seed,
+        workers=args.workers,
+        strategies=parse_strategies(args.strategies),
+        progress=not args.no_progress,
+    )
+    took = time.perf_counter() - started
+    print(f"wrote {len(paths)} reference submissions to {out} in {took:.0f} s")
+    team = baselines_team(board, args.db)
+    options = WorkerOptions(workers=args.workers)
+    failed = 0
+    for name, path in paths.items():
+        try:
+            sid = board.submit(team, path, label=f"baseline: {name}", evaluators=args.evaluators)
+        except DuplicateError as exc:
+            print(f"{name}: already on the board as #{exc.submission_id}, skipped")
+            continue
+        if args.queue_only:
+            print(f"{name}: queued as #{sid}")
+            continue
+        claim = board.claim(worker_name(), options.lease_s, submission_id=sid)
+        if claim is None:
+            print(f"{name}: #{sid} was claimed by a running worker")
+            continue
+        outcome = score_claim(board, claim, options)
+        failed += outcome != "scored"
+        scores = {e: r["metrics"][r["headline"]]["rate"] for e, r in board.results(sid).items()}
+        shown = ", ".join(f"{e} {100 * v:.1f}%" for e, v in scores.items() if v is not None)
+        print(f"{name}: #{sid} {outcome} {shown}")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

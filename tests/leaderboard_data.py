@@ -1,0 +1,67 @@
+"""Data for the leaderboard tests: a 3-object benchmark cut from the shipped one, and valid
+submission files for it (imported as ``leaderboard_data``: pytest puts ``tests/`` on the path)."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from pathlib import Path
+
+import numpy as np
+
+from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+from dg16m_env.evaluators import load_benchmark_ref
+from dg16m_env.submission import write_submission
+
+OBJECTS = 3
+
+
+def small_benchmark(path: Path) -> Path:
+    """The shipped benchmark's first :data:`OBJECTS` objects, written to ``path``."""
+    bench = read_benchmark(EMBEDDED_BENCHMARK)
+    ids = [o.object_id for o in bench.objects][:OBJECTS]
+    write_benchmark(path, bench.select_objects(ids))
+    return path
+
+
+def valid_submission(
+    path: Path, benchmark: Path, *, k: int = 3, offset: int = 0, method: str | None = None
+) -> Path:
+    """A valid submission: each object's stored dual grasps ``offset .. offset + k`` (cycled)."""
+    ref = load_benchmark_ref(benchmark)
+    bench = ref.benchmark
+    poses = {}
+    for object_id in ref.object_ids:
+        rows = bench.object_rows(object_id)
+        take = rows[(np.arange(k) + offset) % rows.size]
+        poses[object_id] = bench.poses[take]
+    metadata = {"method": method} if method else None
+    return write_submission(path, poses, benchmark=ref.sha256, metadata=metadata)
+
+
+def db_dump(db: Path) -> list[str]:
+    """Every row of a board's database as SQL (to check that a refusal changed nothing)."""
+    conn = sqlite3.connect(db)
+    try:
+        return list(conn.iterdump())
+    finally:
+        conn.close()
+
+
+def tree(folder: Path) -> dict[str, bytes]:
+    """Relative path -> bytes of every file under ``folder``."""
+    if not folder.exists():
+        return {}
+    return {str(p.relative_to(folder)): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+
+
+def set_benchmark(db: Path, *, sha256: str, object_ids: list[str], path: str | None) -> None:
+    """Point a board at another benchmark identity (the bad-submission corpus is made for
+    fixed ids and a fixed sha256)."""
+    conn = sqlite3.connect(db)
+    try:
+        value = {"path": path, "sha256": sha256, "object_ids": object_ids, "mesh_root": None}
+        conn.execute("UPDATE settings SET value = ? WHERE key = 'benchmark'", (json.dumps(value),))
+        conn.commit()
+    finally:
+        conn.close()
