@@ -389,7 +389,7 @@ def _show(args: argparse.Namespace) -> int:
             print("  no scored submissions yet")
             continue
         columns = section["columns"][:3]
-        header = f"  {'rank':>4}  {'team':<16} {'submission':<28}" + "".join(
+        header = f"  {'rank':>4}  {'team':<16} {'submission':<36}" + "".join(
             f" {c:<24}" for c in columns
         )
         print(header + " date")
@@ -397,8 +397,8 @@ def _show(args: argparse.Namespace) -> int:
             cells = "".join(
                 f" {format_rate(row['metrics'].get(c)).split(' (')[0]:<24}" for c in columns
             )
-            name = f"{row['label'][:22]} #{row['submission']}"
-            print(f"  {row['rank']:>4}  {row['team'][:16]:<16} {name:<28}{cells} {row['date']}")
+            name = f"{row['label'][:30]} #{row['submission']}"
+            print(f"  {row['rank']:>4}  {row['team'][:16]:<16} {name:<36}{cells} {row['date']}")
         if len(section["rows"]) > args.limit:
             print(f"  ... {len(section['rows']) - args.limit} more (--limit)")
     return 0

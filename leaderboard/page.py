@@ -404,8 +404,7 @@ def _family_chart(ev: Mapping[str, Any], rows: Sequence[Mapping[str, Any]]) -> s
     families = [str(f) for f in ev.get("families") or []]
     if families:
         groups = [
-            (family, [((r.get("per_family") or {}).get(family) or {}).get(headline) for r in rows])
-            for family in families
+            (family, [(r.get("per_family") or {}).get(family) for r in rows]) for family in families
         ]
     else:
         groups = [("overall", [(r.get("metrics") or {}).get(headline) for r in rows])]

@@ -21,7 +21,13 @@ from pathlib import Path
 
 from baselines.commands import DEFAULT_STRATEGIES
 from baselines.reference_submissions import parse_strategies, write_reference_submissions
-from leaderboard.board import Board, DuplicateError, NotFoundError
+from leaderboard.board import (
+    DEFAULT_EVALUATORS,
+    Board,
+    DuplicateError,
+    NotFoundError,
+    check_evaluators,
+)
 from leaderboard.worker import WorkerOptions, score_claim, worker_name
 
 TEAM = "baselines"
@@ -31,7 +37,9 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--db", type=Path, default=Path("runs/leaderboard/board.db"))
     parser.add_argument("--benchmark", type=Path, default=None, help="a new board's benchmark")
-    parser.add_argument("--evaluators", default=None, help="default: the board's")
+    parser.add_argument(
+        "--evaluators", default=None, help="default: the board's (a new board's: fce,gsr)"
+    )
     parser.add_argument("--strategies", default=",".join(DEFAULT_STRATEGIES))
     parser.add_argument("--k", type=int, default=10, help="dual grasps per object (10)")
     parser.add_argument("--seed", type=int, default=0)
@@ -57,7 +65,8 @@ def baselines_team(board: Board, db: Path) -> object:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    board = Board(args.db, benchmark=args.benchmark)
+    evaluators = check_evaluators(args.evaluators) if args.evaluators else DEFAULT_EVALUATORS
+    board = Board(args.db, benchmark=args.benchmark, evaluators=evaluators)
     ref = board.benchmark_ref()
     out = args.db.parent / "reference"
     started = time.perf_counter()

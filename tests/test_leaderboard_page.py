@@ -72,7 +72,7 @@ def board_view(fce_result: dict[str, Any]) -> dict[str, Any]:
     fce_rows = []
     for rank, (submission, team, label, value) in enumerate(ROWS, start=1):
         per_family = {
-            f: {"fce": rate(None if value is None else max(value - 0.1 * k, 0.0), 3, 1)}
+            f: rate(None if value is None else max(value - 0.1 * k, 0.0), 3, 1)
             for k, f in enumerate(families)
         }
         fce_rows.append(
@@ -106,7 +106,7 @@ def board_view(fce_result: dict[str, Any]) -> dict[str, Any]:
             "date": "2026-11-12T06:10:00Z",
             "evaluator_version": "2",
             "metrics": {"gsr": rate(0.25)},
-            "per_family": {"bench": {"gsr": rate(0.3)}},
+            "per_family": {"bench": rate(0.3)},
         },
     ]
     return {
@@ -253,6 +253,17 @@ def test_index_structure(board_view: dict[str, Any]) -> None:
     assert '<span class="ci">[95.7, 100.0]</span>' in page
     assert 'data-value="0.997"' in page
     assert page.count("<svg") == 2  # fce and gsr; none for the empty evaluator
+    # a bar per family and charted submission that has a rate (the top 5 by rank)
+    fce = board_view["evaluators"][0]
+    drawn = sum(
+        1
+        for row in fce["rows"][:5]
+        for family in fce["families"]
+        if row["per_family"][family]["rate"] is not None
+    )
+    chart = page[page.index('id="chart-fce"') : page.index("</svg>", page.index('id="chart-fce"'))]
+    assert drawn > 0
+    assert chart.count('<rect class="bar ') == drawn
     assert 'role="img"' in page
     assert "<title" in page
 

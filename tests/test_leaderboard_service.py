@@ -428,6 +428,11 @@ def test_page_from_the_running_service(service: Service, twenty: list[int], tmp_
             rows = client.get("/api/board").json()["evaluators"][0]["rows"]
         assert shown == [r["submission"] for r in rows]
         assert set(twenty) <= set(shown)
+        with service.client() as client:
+            client_families = client.get("/api/board").json()["evaluators"][0]["families"]
+        families = len(client_families)
+        bars = driver.find_elements(By.CSS_SELECTOR, "#chart-fce rect.bar")
+        assert len(bars) == min(5, len(rows)) * families  # the top 5, every family scored
         screenshot(driver, tmp_path, "leaderboard_service.png")
         team = driver.find_element(By.CSS_SELECTOR, "#table-fce thead th:nth-child(2)")
         team.click()
