@@ -12,8 +12,9 @@ done
 [ ${#missing[@]} -eq 0 ] && exit 0
 if command -v apt-get >/dev/null && [ "$(id -u)" -eq 0 ]; then
   echo "installing system packages: ${missing[*]}"
-  apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
+  if ! { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null; }; then
+    echo "warning: could not install ${missing[*]} with apt-get; what needs them is skipped or fails with a message" >&2
+  fi
 else
   echo "warning: missing system packages: ${missing[*]} (install them with your package manager; until then what needs them is skipped or fails with a message)" >&2
 fi
