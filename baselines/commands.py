@@ -34,7 +34,7 @@ SUBMISSIONS_EXAMPLES = (
 
 
 def register(subparsers: Any) -> None:
-    """Add ``dg16m baselines {submissions}``."""
+    """Add ``dg16m baselines {submissions}`` and ``dg16m reproduce``."""
     baselines = add_command(
         subparsers,
         "baselines",
@@ -61,6 +61,113 @@ def register(subparsers: Any) -> None:
     )
     add_submission_arguments(submissions)
     submissions.set_defaults(handler=run_submissions)
+    register_reproduce(subparsers)
+
+
+REPRODUCE_EXAMPLES = (
+    "  dg16m reproduce table3 --out runs/table3 --workers 2        # ~20 minutes\n"
+    "  dg16m reproduce table3 --out runs/t3-quick --limit 2        # 2 objects per family\n"
+    "  dg16m reproduce table2 --out runs/table2                    # the shipped checkpoints\n"
+    "  dg16m reproduce table2 --out runs/t2 --checkpoints runs/classifiers\n"
+    "  dg16m reproduce fig4 --out runs/fig4 --objects 20 --workers 2\n"
+)
+
+
+def register_reproduce(subparsers: Any) -> None:
+    """Add ``dg16m reproduce {table2,table3,fig4}``."""
+    reproduce = add_command(
+        subparsers,
+        "reproduce",
+        "Re-run the paper's Table II, Table III or Fig. 4 on our data, beside its numbers.",
+        REPRODUCE_EXAMPLES,
+        description=(
+            "Each writes its table (Markdown, CSV, and JSON with every result record and seed) "
+            "or figure (PNG, JSON) to --out, with the paper's numbers beside ours; rates carry "
+            "object-resampled 95%% confidence intervals. See baselines/reproduce.py and "
+            "baselines/RESULTS.md."
+        ),
+    )
+    which = reproduce.add_subparsers(dest="reproduce_command", metavar="RESULT", required=True)
+    t3 = add_command(
+        which,
+        "table3",
+        "Pairing strategies (random, farthest, force closure): FCE and GSR.",
+        REPRODUCE_EXAMPLES,
+    )
+    t2 = add_command(
+        which,
+        "table2",
+        "Classifiers trained on our labels vs DA2-style labels: top-k FCE and GSR.",
+        REPRODUCE_EXAMPLES,
+    )
+    f4 = add_command(
+        which,
+        "fig4",
+        "Q(G) of passing vs failing pairs, by our labels and by DA2's.",
+        REPRODUCE_EXAMPLES,
+    )
+    for parser in (t3, t2, f4):
+        parser.add_argument("--out", type=Path, required=True, help="output folder")
+        parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    for parser in (t3, t2):
+        add_benchmark_arguments(parser)
+        parser.add_argument(
+            "--limit", type=int, default=None, help="only the first N objects of each family"
+        )
+        parser.add_argument("--k", type=int, default=10, help="dual grasps per object (10)")
+    for parser in (t3, f4):
+        parser.add_argument("--seed", type=int, default=0, help="global seed (default 0)")
+        parser.add_argument("--workers", type=int, default=1, help="local processes")
+    t2.add_argument(
+        "--checkpoints", type=Path, default=None, help="folder of <model>-<labels>.pt files"
+    )
+    f4.add_argument("--data", type=Path, default=None, help="a 'dg16m generate' folder")
+    f4.add_argument(
+        "--objects", type=int, default=20, help="without --data: train objects to generate"
+    )
+    reproduce.set_defaults(handler=run_reproduce)
+
+
+def run_reproduce(args: argparse.Namespace) -> int:
+    """Handler of ``dg16m reproduce``: prints the table or the figure's summary."""
+    from baselines import reproduce
+
+    progress = not args.no_progress
+    if args.reproduce_command == "table3":
+        reproduce.table3(
+            args.out,
+            benchmark=args.benchmark,
+            limit=args.limit,
+            k=args.k,
+            seed=args.seed,
+            workers=args.workers,
+            progress=progress,
+        )
+        print((args.out / "table3.md").read_text(encoding="utf-8"))
+    elif args.reproduce_command == "table2":
+        reproduce.table2(
+            args.out,
+            checkpoints=args.checkpoints,
+            benchmark=args.benchmark,
+            limit=args.limit,
+            k=args.k,
+            progress=progress,
+        )
+        print((args.out / "table2.md").read_text(encoding="utf-8"))
+    else:
+        payload = reproduce.fig4(
+            args.out,
+            data=args.data,
+            objects=args.objects,
+            seed=args.seed,
+            workers=args.workers,
+            progress=progress,
+        )
+        for key in ("q_by_dg16m_label", "q_by_da2_label"):
+            print(f"{key}: ROC AUC {payload[key].get('auc')}")
+        print(f"wrote {args.out / 'fig4.png'}")
+    print(f"wrote {args.out}")
+    return 0
 
 
 def add_submission_arguments(parser: argparse.ArgumentParser) -> None:

@@ -23,9 +23,20 @@ def parse_args(cls: type[A], description: str) -> A:
     parser = argparse.ArgumentParser(description=description)
     for field in dataclasses.fields(cls):  # type: ignore[arg-type]
         flag = "--" + field.name.replace("_", "-")
-        kind = type(field.default)
+        kind = _boolean if isinstance(field.default, bool) else type(field.default)
         parser.add_argument(flag, type=kind, default=field.default, help=field.name)
     return cls(**vars(parser.parse_args()))
+
+
+def _boolean(text: str) -> bool:
+    """``true/false``, ``yes/no``, ``1/0`` (argparse's ``type=bool`` would take "false" as
+    True)."""
+    value = text.strip().lower()
+    if value in ("true", "yes", "1"):
+        return True
+    if value in ("false", "no", "0"):
+        return False
+    raise argparse.ArgumentTypeError(f"expected true or false, found {text!r}")
 
 
 def split_objects(object_ids: list[str]) -> tuple[list[str], list[str]]:

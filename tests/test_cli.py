@@ -227,7 +227,8 @@ def test_commands_come_from_the_entry_point_group_in_a_stable_order() -> None:
     names = list(parser._subparsers._group_actions[0].choices)  # help order
     assert names == [
         *SUBCOMMANDS[:4],
-        *("generate", "stats", "verify", "baselines", "benchmark", "evaluate", "submission", "sim"),
+        *("generate", "stats", "verify", "baselines", "reproduce", "benchmark", "evaluate"),
+        *("submission", "sim"),
         "leaderboard",
     ]
 
