@@ -27,7 +27,6 @@ fill two cores (see baselines/RESULTS.md).
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,7 +35,13 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from baselines.classifier_data import BatchSampler, load_generated, split_objects
+from baselines.classifier_data import (
+    LABELS,
+    BatchSampler,
+    ClassifierDataError,
+    load_generated,
+    split_objects,
+)
 from baselines.sb3_common import parse_args, write_run
 from dataset_gen.atomic import atomic_path, write_json_atomic
 
@@ -83,7 +88,7 @@ def build_model(name: str, seed: int) -> Any:
         from baselines.dual_pointnet_gpd import DualPointNetGPD, DualPointNetGPDConfig
 
         return DualPointNetGPD(DualPointNetGPDConfig(seed=seed))
-    raise ValueError(f"--model: expected one of {MODELS}, found {name!r}")
+    raise ClassifierDataError(f"--model: expected one of {MODELS}, found {name!r}")
 
 
 def roc_auc(scores: np.ndarray, labels: np.ndarray) -> float | None:
@@ -169,8 +174,8 @@ def main(args: Args | None = None) -> dict[str, Any]:
 
     torch.set_num_threads(args.threads)
     torch.manual_seed(args.seed)  # dropout-free models; this only fixes torch's own kernels
-    if args.labels not in ("dg16m", "da2"):
-        raise ValueError(f"--labels: expected dg16m or da2, found {args.labels!r}")
+    if args.labels not in LABELS:
+        raise ClassifierDataError(f"--labels: expected one of {LABELS}, found {args.labels!r}")
     args.out.mkdir(parents=True, exist_ok=True)
     name = f"{args.model}-{args.labels}"
 
@@ -241,7 +246,7 @@ def main(args: Args | None = None) -> dict[str, Any]:
         final=history[-1] if history else None,
     )
     print(f"wrote {checkpoint} and {name}-curve.png, -history.json, -results.json in {args.out}")
-    return json.loads(json.dumps({"history": history, "steps": step}))
+    return {"history": history, "steps": step}
 
 
 if __name__ == "__main__":
