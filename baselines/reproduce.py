@@ -135,10 +135,10 @@ def table3(
     )
     results: dict[str, dict[str, Any]] = {}
     rows = []
+    evaluators = submission_evaluators(
+        ["fce", "gsr"], ref, workers=workers, seed=seed, progress=progress
+    )
     for strategy in strategies:
-        evaluators = submission_evaluators(
-            ["fce", "gsr"], ref, workers=workers, seed=seed, progress=progress
-        )
         scored = {name: ev.evaluate(paths[strategy]) for name, ev in evaluators.items()}
         results[strategy] = {name: r.to_dict() for name, r in scored.items()}
         fce, gsr = scored["fce"].metrics["fce"], scored["gsr"].metrics["gsr"]

@@ -42,6 +42,7 @@ from baselines.classifier_data import (
     load_generated,
     split_objects,
 )
+from baselines.da2_labels import roc_auc
 from baselines.sb3_common import parse_args, write_run
 from dataset_gen.atomic import atomic_path, write_json_atomic
 
@@ -89,18 +90,6 @@ def build_model(name: str, seed: int) -> Any:
 
         return DualPointNetGPD(DualPointNetGPDConfig(seed=seed))
     raise ClassifierDataError(f"--model: expected one of {MODELS}, found {name!r}")
-
-
-def roc_auc(scores: np.ndarray, labels: np.ndarray) -> float | None:
-    """Rank-based ROC AUC (ties count half); None when a class is missing."""
-    labels = np.asarray(labels, dtype=bool)
-    n_pos, n_neg = int(labels.sum()), int((~labels).sum())
-    if n_pos == 0 or n_neg == 0:
-        return None
-    from scipy.stats import rankdata
-
-    ranks = rankdata(scores)
-    return float((ranks[labels].sum() - n_pos * (n_pos + 1) / 2) / (n_pos * n_neg))
 
 
 def validation_set(objects: list[Any], label: str, per_object: int, seed: int) -> list[tuple]:

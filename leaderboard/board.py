@@ -26,6 +26,7 @@ board's benchmark) before anything is stored; a refused file changes nothing.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import math
 import os
@@ -46,7 +47,6 @@ from dg16m_env.submission import (
     SubmissionInvalid,
     SubmissionLimits,
     read_submission,
-    validate_submission,
 )
 
 from .schema import migrate
@@ -268,13 +268,13 @@ class Board:
         self.max_attempts = max_attempts
         self.limits = limits or SubmissionLimits()
         self.clock = clock
+        self._benchmark_ref: Any = None  # loaded by _initialise or benchmark_ref()
         self.db.parent.mkdir(parents=True, exist_ok=True)
         with contextlib.closing(self._connect()) as conn:
             conn.execute("PRAGMA journal_mode=WAL")
             migrate(conn)
         if self.setting("benchmark") is None:
             self._initialise(benchmark, mesh_root, check_evaluators(list(evaluators)), title)
-        self._benchmark_ref: Any = None
 
     # ---------------------------------------------------------------------------------------
     # Connections and settings
@@ -347,7 +347,7 @@ class Board:
                 )
         self._benchmark_ref = ref
 
-    @property
+    @functools.cached_property
     def benchmark(self) -> BenchmarkSetting:
         """The board's benchmark."""
         data = self.setting("benchmark")
@@ -358,12 +358,12 @@ class Board:
             mesh_root=data["mesh_root"],
         )
 
-    @property
+    @functools.cached_property
     def evaluators(self) -> list[str]:
         """The evaluators a submission is scored with unless it names others."""
         return list(self.setting("evaluators"))
 
-    @property
+    @functools.cached_property
     def title(self) -> str:
         return str(self.setting("title"))
 
@@ -458,17 +458,6 @@ class Board:
         if not re.fullmatch(r"[0-9a-f]{64}", sha256):
             raise BoardError(f"sha256: expected 64 hex digits, found {sha256!r}")
         return self.files / sha256[:2] / f"{sha256}.h5"
-
-    def validate(self, path: str | os.PathLike[str]) -> list[Any]:
-        """Every problem of a submission file for this board's benchmark (empty: valid)."""
-        setting = self.benchmark
-        return validate_submission(
-            path,
-            object_ids=setting.object_ids,
-            benchmark_sha256=setting.sha256,
-            embedded=setting.embedded,
-            limits=self.limits,
-        )
 
     def submit(
         self,

@@ -252,19 +252,17 @@ def _init(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_token(path: Path, token: str) -> None:
-    """The token to a new file readable by its owner only (refuses to overwrite one)."""
+def _check_token_file(path: Path | None) -> None:
+    """Refuse an existing ``--token-file`` before a token is made (it would be lost)."""
     from .board import BoardError
 
-    try:
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    except FileExistsError:
-        raise BoardError(f"--token-file: expected a new file, found {path}") from None
-    with os.fdopen(fd, "w") as handle:
-        handle.write(token + "\n")
+    if path is not None and (path.exists() or path.is_symlink()):
+        raise BoardError(f"--token-file: expected a new file, found {path}")
 
 
 def _team(args: argparse.Namespace) -> int:
+    from .tokens import write_token_file
+
     action = args.team_action
     board = _open(args, create=action == "add")
     if action == "list":
@@ -277,12 +275,13 @@ def _team(args: argparse.Namespace) -> int:
             since = iso_time(team.created_at)
             print(f"{team.name:<24} {counts.get(team.name, 0):>4} submissions  since {since}")
         return 0
+    _check_token_file(args.token_file)
     if action == "add":
         _, token = board.add_team(args.name)
     else:
         token = board.rotate_token(args.name)
     if args.token_file is not None:
-        _write_token(args.token_file, token)
+        write_token_file(args.token_file, token)
         print(f"team {args.name}: token written to {args.token_file} (keep it secret)")
     else:
         print(f"team {args.name}: token (shown once, keep it secret):\n{token}")
@@ -347,13 +346,11 @@ def _submit(args: argparse.Namespace) -> int:
 
 
 def _print_submission(view: dict[str, Any]) -> None:
-    from dg16m_env.evaluators.result import format_rate
+    from dg16m_env.evaluators import EvaluationResult
 
     print(f"#{view['id']} {view['label']} ({view['team']}): {view['status']}")
-    for name, result in view.get("results", {}).items():
-        print(f"  {name} v{result['evaluator_version']}")
-        for metric, value in result["metrics"].items():
-            print(f"    {metric:<22} {format_rate(value)}")
+    for result in view.get("results", {}).values():
+        print("  " + EvaluationResult.from_dict(result).format().replace("\n", "\n  "))
     if view.get("error"):
         print(f"  error: {view['error']}")
 

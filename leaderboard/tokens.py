@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import os
 import re
 import secrets
 from collections.abc import Iterable
@@ -48,3 +49,15 @@ def find_token(token: str, stored: Iterable[tuple[str, T]]) -> T | None:
         if hmac.compare_digest(presented, digest.encode("ascii")) and well_formed:
             found = value
     return found
+
+
+def write_token_file(path: str | os.PathLike[str], token: str, *, overwrite: bool = False) -> None:
+    """Write ``token`` (and a newline) to a file only its owner can read (mode 0600).
+
+    Raises:
+        FileExistsError: ``path`` exists and ``overwrite`` is False.
+    """
+    flags = os.O_WRONLY | os.O_CREAT | (os.O_TRUNC if overwrite else os.O_EXCL)
+    fd = os.open(path, flags, 0o600)
+    with os.fdopen(fd, "w") as handle:
+        handle.write(token + "\n")

@@ -47,6 +47,7 @@ def board_view(board: Board, *, now: float | None = None) -> dict[str, Any]:
     sections = []
     for name in order:
         rows, columns, families = [], [], set()
+        headline = name  # until a result names it
         previous: tuple[Any, int] | None = None
         for position, row in enumerate(by_evaluator.get(name, []), start=1):
             result = json.loads(row["result"])
@@ -74,7 +75,6 @@ def board_view(board: Board, *, now: float | None = None) -> dict[str, Any]:
                     "per_family": per_family,
                 }
             )
-        headline = json.loads(by_evaluator[name][0]["result"])["headline"] if rows else name
         sections.append(
             {
                 "name": name,

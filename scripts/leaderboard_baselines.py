@@ -13,7 +13,6 @@ already submitted is skipped, so running the script again is harmless.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from collections.abc import Sequence
@@ -28,6 +27,7 @@ from leaderboard.board import (
     NotFoundError,
     check_evaluators,
 )
+from leaderboard.tokens import write_token_file
 from leaderboard.worker import WorkerOptions, score_claim, worker_name
 
 TEAM = "baselines"
@@ -56,9 +56,7 @@ def baselines_team(board: Board, db: Path) -> object:
     except NotFoundError:
         team, token = board.add_team(TEAM)
         path = db.parent / f"{TEAM}.token"
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-        with os.fdopen(fd, "w") as handle:
-            handle.write(token + "\n")
+        write_token_file(path, token, overwrite=True)
         print(f"added team {TEAM} (token in {path})")
         return team
 

@@ -45,6 +45,11 @@ def test_round_trip(capsys: pytest.CaptureFixture[str], tmp_path: Path, bench: P
     token = token_file.read_text().strip()
     assert token not in out
     assert Board(db).authenticate(token).name == "lab-a"
+    code, _, err = run(capsys, "team", "add", "lab-c", "--db", db, "--token-file", token_file)
+    assert code == 2
+    assert "expected a new file" in err
+    assert [t.name for t in Board(db).teams()] == ["lab-a"]  # refused before the team was made
+    assert token_file.read_text().strip() == token
     code, out, _ = run(capsys, "team", "add", "lab-b", "--db", db)
     assert code == 0
     assert "shown once" in out
