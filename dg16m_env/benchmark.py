@@ -96,7 +96,7 @@ from dataset_gen.parameters import PAPER
 from dataset_gen.procedural import benchmark_specs
 from dataset_gen.sampling import sample_antipodal_grasps
 from dataset_gen.sources import ObjectSource, mesh_sources, object_seed, procedural_sources
-from dg16m_env.decomposition import object_parts
+from dataset_gen.decomposition import object_parts
 from dg16m_env.labels import (
     LEVELS,
     GraspLabels,

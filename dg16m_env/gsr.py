@@ -25,7 +25,7 @@ from dataset_gen.objects import ConvexPart
 from dataset_gen.parallel import Backend, run_tasks
 from dataset_gen.parameters import PAPER
 from dataset_gen.sources import ObjectSource
-from dg16m_env.decomposition import object_parts
+from dataset_gen.decomposition import object_parts
 from dg16m_env.labels import LEVELS, GraspLabels, PerturbationSpec, success_probability
 from dg16m_env.scene import SceneParameters, compile_scene
 from dg16m_env.trial import TrialProtocol, check_dual_grasps

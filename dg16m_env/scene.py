@@ -29,7 +29,7 @@ Contact (measured on this machine, see DESIGN.md)
 (sliding and torsional friction), ``solref = [2 * timestep, 1]``, ``solimp = [0.95, 0.99, 0.001]``,
 finger armature. Each convex part of the object is its own geom (MuJoCo collides a mesh geom as
 its convex hull, so non-convex objects need their convex parts; see
-:mod:`dg16m_env.decomposition`).
+:mod:`dataset_gen.decomposition`).
 """
 
 from __future__ import annotations
@@ -312,7 +312,7 @@ def object_parts_or_error(
     if not chosen:
         raise SceneError(
             f"{obj.object_id}: expected convex parts (procedural objects carry them; for a mesh "
-            "use dg16m_env.decomposition.object_parts), found none. A mesh geom collides as its "
+            "use dataset_gen.decomposition.object_parts), found none. A mesh geom collides as its "
             "convex hull, which gives false successes on non-convex objects."
         )
     return chosen

@@ -16,8 +16,8 @@ pytest.importorskip("coacd")
 from dataset_gen.errors import MeshError
 from dataset_gen.objects import make_object, parts_to_mesh
 from dataset_gen.procedural import make_procedural_object
-from dg16m_env import decomposition as dec
-from dg16m_env.decomposition import (
+from dataset_gen import decomposition as dec
+from dataset_gen.decomposition import (
     DecompositionParameters,
     convex_decomposition,
     default_cache_dir,

@@ -49,7 +49,7 @@ CACHE_SCHEMA_VERSION = 1
 MIN_RELATIVE_HULL_VOLUME = 1e-9
 """Hulls with volume below this fraction of the mesh's bounding-box volume are dropped."""
 
-_INSTALL_HINT = "convex decomposition needs the 'coacd' package; install dg16m[sim]"
+_INSTALL_HINT = "convex decomposition needs the 'coacd' package; reinstall dg16m (pip install -e .)"
 
 
 @dataclass(frozen=True)
