@@ -60,12 +60,12 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
+from dataset_gen.decomposition import object_parts
 from dataset_gen.objects import GraspObject
 from dataset_gen.procedural import benchmark_specs
 from dataset_gen.sources import ObjectSource, object_seed, procedural_sources
 from dg16m_env import labels, trial
 from dg16m_env.benchmark import BenchmarkParameters, sampled_pairs
-from dataset_gen.decomposition import object_parts
 from dg16m_env.scene import Scene, compile_scene
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"

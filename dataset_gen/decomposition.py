@@ -1,22 +1,51 @@
 """Convex decomposition of meshes that have no convex parts (CoACD), cached on disk.
 
 MuJoCo collides every mesh geom as its convex hull, so a non-convex object needs a convex
-decomposition before it can be simulated (see DESIGN.md, "Simulation facts"). Procedural objects
-carry their exact parts; loaded meshes do not, and CoACD takes 25-110 s per real mesh, so results
-are cached by a digest of the mesh arrays, the parameters and the CoACD version.
+decomposition before it can be simulated (see DESIGN.md, "Simulation facts" and "Real meshes").
+Procedural objects carry their exact parts; loaded meshes do not, and CoACD takes seconds to
+minutes per real mesh, so results are cached by a digest of the mesh arrays, the parameters and
+the CoACD version. :func:`decomposition_report` measures how far the hulls stick out of the mesh.
 
 Frames and units: the parts are in the mesh's own frame and units (for a
 :class:`~dataset_gen.objects.GraspObject` that is the object frame, metres); every part is a
 ``ConvexPart(kind="mesh", pose=identity, vertices=hull_vertices)``.
 
+Why the defaults are what they are (measured with CoACD 1.0.14 on one core, OMP_NUM_THREADS=1,
+on seven watertight real furniture meshes of 140-9,758 faces and 0.5-0.9 m; deviation = the
+one-sided hull-to-mesh distance of :func:`decomposition_report`, 20,000 samples; the full
+table is in bench/decomposition.py's output):
+
+* Preprocessing. CoACD's own ``preprocess_mode="auto"`` calls meshes non-manifold that trimesh
+  and manifold3d find watertight and voxel-remeshes them (resolution 50): on 5 of the 7 meshes
+  it did, and every hull moved off the surface (couch, threshold 0.05: p95 9.9 mm, max 25 mm,
+  24 s; the same threshold without it: p95 5.4 mm, 6 s). Our ``preprocess="auto"`` runs the
+  voxel repair only when trimesh does not find a volume (:func:`needs_repair`), and CoACD's own
+  "auto" is never passed on.
+* Threshold 0.01 (was 0.05). CoACD's concavity threshold is relative to the mesh size and the
+  largest deviation follows it (about threshold x longest side / 2, at concave creases that a
+  hull chamfers). p95 / max deviation in mm, hulls, CPU s on the 2,476-face couch:
+  0.05: 5.4 / 19.5, 13, 6 s; 0.03: 0.94 / 12.4, 22, 10 s; 0.02: 0.71 / 7.1, 26, 10 s;
+  0.015: 0.49 / 5.6, 39, 14 s; 0.01: 0.07 / 4.3, 108, 28 s. Over the seven meshes, 0.01 is the
+  coarsest threshold tried that keeps p95 well under 1 mm on all of them (0.007-0.40 mm; 0.015
+  left the dining chair at 1.28 mm, 0.0125 at 0.98 mm) with max 2.0-4.3 mm (0.015: 3.9-5.9 mm)
+  and the couch in 28 s on one core (target: under 60 s). The price: more hulls (29-663, the
+  ACRONYM table the most) and up to 95 s on one core for the finer meshes (CoACD uses all
+  cores by default, and the result is cached).
+* Not changed, because measured no better: a larger ``resolution`` (6000 at 0.02 on the couch:
+  p95 0.98 mm vs 0.71), ``merge=False`` (same deviation, more hulls), deeper MCTS (0.015 with
+  300 iterations, depth 4: 33 s for p95 0.21 / max 6.1 mm, worse than 0.01), a hull cap
+  (``max_convex_hulls=128`` at 0.01: the ACRONYM table's max went from 3.8 to 9.0 mm, slower),
+  ``real_metric`` with 2 mm (couch: 1,676 hulls in 275 s, max still 2.5 mm).
+
 Cache layout: ``<cache_dir>/<digest>.json``, written atomically, holding::
 
-    {"format": "dg16m-coacd", "schema_version": 1, "digest": "<sha256 hex>",
+    {"format": "dg16m-coacd", "schema_version": 2, "digest": "<sha256 hex>",
      "parameters": {...DecompositionParameters...}, "coacd_version": "1.0.14",
      "parts": [ConvexPart.to_dict(), ...]}
 
 A cache file that cannot be read, has another format, or does not match the request is ignored,
-recomputed and overwritten.
+recomputed and overwritten. Schema 2 (``preprocess``, ``max_ch_vertex``, ``merge`` and
+``decimate`` in the parameters) invalidates every schema-1 file.
 """
 
 from __future__ import annotations
@@ -28,6 +57,7 @@ import math
 import os
 import time
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,8 +73,14 @@ from dataset_gen.objects import ConvexPart, GraspObject, part_from_dict
 CACHE_FORMAT = "dg16m-coacd"
 """Value of the ``"format"`` field of a cache file."""
 
-CACHE_SCHEMA_VERSION = 1
+CACHE_SCHEMA_VERSION = 2
 """Value of the ``"schema_version"`` field of a cache file."""
+
+PREPROCESS_MODES = ("auto", "on", "off")
+"""Values of :attr:`DecompositionParameters.preprocess`."""
+
+DEFAULT_THRESHOLD = 0.01
+"""Default CoACD concavity threshold (see the module docstring for the measurements)."""
 
 MIN_RELATIVE_HULL_VOLUME = 1e-9
 """Hulls with volume below this fraction of the mesh's bounding-box volume are dropped."""
@@ -55,31 +91,42 @@ _INSTALL_HINT = "convex decomposition needs the 'coacd' package; reinstall dg16m
 @dataclass(frozen=True)
 class DecompositionParameters:
     """CoACD settings (the names follow ``coacd.run_coacd``; ``max_convex_hulls`` is its
-    ``max_convex_hull``).
+    ``max_convex_hull``, ``preprocess`` decides its ``preprocess_mode``). The defaults are
+    chosen by measurement (module docstring).
 
     Attributes:
         threshold: concavity threshold in (0, 1], relative to the mesh size; smaller gives more,
-            tighter hulls. Thin features (handles, rims, slats) need a finer one (e.g. 0.02), or
-            CoACD covers them and the gaps between them with one hull.
+            tighter hulls. The largest hull-to-mesh deviation is about threshold x longest side
+            / 2 (0.01 on a 0.85 m couch: max 4.3 mm, p95 0.07 mm).
+        preprocess: "auto" (default) runs CoACD's manifold pre-processing (a voxel remesh) only
+            when the mesh is not a volume (:func:`needs_repair`), "on" / "off" force it. CoACD's
+            own "auto" is never used: it remeshes watertight meshes too.
         max_convex_hulls: upper bound on the number of hulls after merging; -1 means no limit.
         preprocess_resolution: voxel resolution of the manifold pre-processing (cells per side).
         resolution: number of surface samples used to measure concavity.
         mcts_nodes: children per node of the Monte-Carlo tree search over cutting planes.
         mcts_iterations: search iterations per cut.
         mcts_max_depth: search depth (cuts looked ahead).
+        max_ch_vertex: most vertices per hull when ``decimate`` is on (>= 4).
+        merge: merge hulls afterwards while the concavity stays under the threshold.
+        decimate: simplify hulls to at most ``max_ch_vertex`` vertices (off: exact hulls).
         seed: CoACD's random seed, in [0, 2**32); equal seeds give equal hulls.
 
     Raises:
         MeshError: a value of the wrong type or out of range.
     """
 
-    threshold: float = 0.05
+    threshold: float = DEFAULT_THRESHOLD
+    preprocess: str = "auto"
     max_convex_hulls: int = -1
     preprocess_resolution: int = 50
     resolution: int = 2000
     mcts_nodes: int = 20
     mcts_iterations: int = 150
     mcts_max_depth: int = 3
+    max_ch_vertex: int = 256
+    merge: bool = True
+    decimate: bool = False
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -90,6 +137,15 @@ class DecompositionParameters:
         if not (math.isfinite(threshold) and 0.0 < threshold <= 1.0):
             raise MeshError(f"threshold: expected a number in (0, 1], found {threshold!r}")
         object.__setattr__(self, "threshold", threshold)
+        if not isinstance(self.preprocess, str) or self.preprocess not in PREPROCESS_MODES:
+            raise MeshError(
+                f"preprocess: expected one of 'auto', 'on', 'off', found {self.preprocess!r}"
+            )
+        for name in ("merge", "decimate"):
+            value = getattr(self, name)
+            if not isinstance(value, (bool, np.bool_)):
+                raise MeshError(f"{name}: expected True or False, found {value!r}")
+            object.__setattr__(self, name, bool(value))
         ranges = {
             "max_convex_hulls": (-1, None),
             "preprocess_resolution": (1, None),
@@ -97,6 +153,7 @@ class DecompositionParameters:
             "mcts_nodes": (1, None),
             "mcts_iterations": (1, None),
             "mcts_max_depth": (1, None),
+            "max_ch_vertex": (4, None),
             "seed": (0, 2**32 - 1),
         }
         for name, (low, high) in ranges.items():
@@ -115,11 +172,40 @@ class DecompositionParameters:
         """JSON-ready ``{field: value}``."""
         return dataclasses.asdict(self)
 
-    def coacd_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments for ``coacd.run_coacd``."""
+    def preprocess_mode(self, mesh: trimesh.Trimesh) -> str:
+        """CoACD's ``preprocess_mode`` for ``mesh``: "on" or "off", never CoACD's own "auto".
+
+        ``preprocess="auto"`` gives "on" exactly when :func:`needs_repair` (the mesh is not a
+        volume); "on" and "off" are returned as they are.
+        """
+        if self.preprocess != "auto":
+            return self.preprocess
+        return "on" if needs_repair(mesh) else "off"
+
+    def coacd_kwargs(self, preprocess_mode: str = "off") -> dict[str, Any]:
+        """Keyword arguments for ``coacd.run_coacd``.
+
+        Args:
+            preprocess_mode: "on" or "off", as :meth:`preprocess_mode` resolves it for the mesh.
+        """
+        if preprocess_mode not in ("on", "off"):
+            raise MeshError(f"preprocess_mode: expected 'on' or 'off', found {preprocess_mode!r}")
         kwargs = self.to_dict()
         kwargs["max_convex_hull"] = kwargs.pop("max_convex_hulls")
+        del kwargs["preprocess"]
+        kwargs["preprocess_mode"] = preprocess_mode
         return kwargs
+
+
+def needs_repair(mesh: trimesh.Trimesh) -> bool:
+    """Whether ``mesh`` needs CoACD's manifold pre-processing (a voxel remesh) before cutting.
+
+    True when trimesh does not find a volume (``mesh.is_volume`` is False: not watertight,
+    inconsistent winding, or non-positive volume). CoACD's own "auto" test is much stricter:
+    it calls watertight, manifold meshes (by trimesh and manifold3d) non-manifold and
+    remeshes them, which moves every hull millimetres off the surface.
+    """
+    return not bool(mesh.is_volume)
 
 
 def _import_coacd() -> Any:
@@ -244,12 +330,18 @@ def _hull_part(points: np.ndarray, min_volume: float) -> ConvexPart | None:
 
 
 def _compute(
-    vertices: np.ndarray, faces: np.ndarray, params: DecompositionParameters, label: str
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    params: DecompositionParameters,
+    label: str,
+    preprocess_mode: str,
 ) -> tuple[ConvexPart, ...]:
     coacd = _import_coacd()
     if hasattr(coacd, "set_log_level"):
         coacd.set_log_level("error")
-    result = coacd.run_coacd(coacd.Mesh(vertices, faces.astype(np.int32)), **params.coacd_kwargs())
+    result = coacd.run_coacd(
+        coacd.Mesh(vertices, faces.astype(np.int32)), **params.coacd_kwargs(preprocess_mode)
+    )
     box_volume = float(np.prod(np.ptp(vertices, axis=0)))
     min_volume = MIN_RELATIVE_HULL_VOLUME * box_volume
     parts = [_hull_part(hull_vertices, min_volume) for hull_vertices, _ in result]
@@ -305,8 +397,9 @@ def convex_decomposition(
         cache_dir: cache folder (default :func:`default_cache_dir`); created when missing.
         use_cache: ``False`` always computes and neither reads nor writes the cache.
         name: used in error messages (default: the mesh's ``file_name`` metadata, or "mesh").
-        stats: when given, receives ``"cache_hit"`` (bool), ``"cache_path"`` (Path or None)
-            and ``"seconds"`` (float, wall time of this call).
+        stats: when given, receives ``"cache_hit"`` (bool), ``"cache_path"`` (Path or None),
+            ``"preprocess"`` (the ``preprocess_mode`` CoACD ran with, or would have on a cache
+            hit: "on" or "off") and ``"seconds"`` (float, wall time of this call).
 
     Returns:
         One ``ConvexPart(kind="mesh", pose=identity, vertices=(V, 3) hull vertices)`` per hull,
@@ -333,8 +426,9 @@ def convex_decomposition(
         path = folder / f"{digest}.json"
         parts = _read_cache(path, digest, params, version)
     hit = parts is not None
+    mode = params.preprocess_mode(mesh)
     if parts is None:
-        parts = _compute(vertices, faces, params, label)
+        parts = _compute(vertices, faces, params, label, mode)
         if path is not None:
             payload = {
                 "format": CACHE_FORMAT,
@@ -355,6 +449,7 @@ def convex_decomposition(
     if stats is not None:
         stats["cache_hit"] = hit
         stats["cache_path"] = path
+        stats["preprocess"] = mode
         stats["seconds"] = time.perf_counter() - start
     return parts
 
@@ -375,3 +470,519 @@ def object_parts(obj: GraspObject, **kwargs: Any) -> tuple[ConvexPart, ...]:
         return tuple(obj.parts)
     kwargs.setdefault("name", obj.object_id)
     return convex_decomposition(obj.mesh, **kwargs)
+
+
+@dataclass(frozen=True)
+class DecompositionReport:
+    """How faithful a convex decomposition is to its mesh (see :func:`decomposition_report`).
+
+    Lengths in metres; ``extra_volume`` is a fraction of the mesh volume (0.01 = 1 %).
+
+    Attributes:
+        name: the mesh's name (file name metadata, or "mesh").
+        faces: triangles of the mesh.
+        watertight: trimesh's ``is_watertight``.
+        inside_test: whether the mesh is a volume (``is_volume``), so that hull points inside it
+            count as 0; False: every sample counts with its unsigned distance to the surface.
+        hulls: number of convex parts.
+        deviation_max: largest one-sided hull-to-mesh distance over the surface samples and
+            every hull vertex (m).
+        deviation_p95: 95th percentile over the area-weighted surface samples (m).
+        deviation_mean: mean over the area-weighted surface samples (m).
+        extra_volume: (volume of the union of the hulls - mesh volume) / mesh volume, Monte Carlo
+            (negative when the hulls miss more than they add); NaN without ``inside_test``.
+        samples: surface samples (and Monte-Carlo points) drawn.
+        preprocess: CoACD's ``preprocess_mode`` used ("on"/"off"), "" when unknown.
+        seconds: wall time of the decomposition call (NaN when unknown).
+        cache_hit: whether the decomposition came from the cache (None when unknown).
+        cache_path: the cache file ("" when unknown or not cached).
+        report_seconds: wall time of computing this report.
+    """
+
+    name: str
+    faces: int
+    watertight: bool
+    inside_test: bool
+    hulls: int
+    deviation_max: float
+    deviation_p95: float
+    deviation_mean: float
+    extra_volume: float
+    samples: int
+    preprocess: str = ""
+    seconds: float = math.nan
+    cache_hit: bool | None = None
+    cache_path: str = ""
+    report_seconds: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready ``{field: value}``; NaN becomes ``None``."""
+        data = dataclasses.asdict(self)
+        return {
+            key: None if isinstance(value, float) and not math.isfinite(value) else value
+            for key, value in data.items()
+        }
+
+    def format(self) -> str:
+        """One line for people: lengths in mm, extra volume in %, time in s."""
+        extra = "n/a" if not math.isfinite(self.extra_volume) else f"{self.extra_volume:+.1%}"
+        tightness = "" if self.inside_test else " (unsigned: not a volume)"
+        seconds = "?" if not math.isfinite(self.seconds) else f"{self.seconds:.1f} s"
+        source = {True: "cache hit", False: "computed", None: "source unknown"}[self.cache_hit]
+        if self.cache_path:
+            source += f" {self.cache_path}" if self.cache_hit else f", cached in {self.cache_path}"
+        return (
+            f"{self.name}: {self.faces} faces, "
+            f"{'watertight' if self.watertight else 'NOT watertight'}, "
+            f"preprocess {self.preprocess or '?'}; {self.hulls} hulls; deviation max "
+            f"{self.deviation_max * 1e3:.2f} / p95 {self.deviation_p95 * 1e3:.2f} / mean "
+            f"{self.deviation_mean * 1e3:.3f} mm{tightness}; extra volume {extra}; "
+            f"{seconds} ({source})"
+        )
+
+
+def _hull_equations(parts: Sequence[ConvexPart]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per part, in the parts' frame: (triangles (T, 3, 3), facet planes (F, 4) n.x + d <= 0)."""
+    hulls = []
+    for index, part in enumerate(parts):
+        if not isinstance(part, ConvexPart):
+            raise MeshError(f"parts[{index}]: expected a ConvexPart, found {type(part).__name__}")
+        points = np.asarray(part.to_mesh().vertices, dtype=np.float64)
+        try:
+            hull = ConvexHull(points)
+        except (QhullError, ValueError) as exc:
+            raise MeshError(
+                f"parts[{index}]: expected a convex part with volume, found a degenerate one "
+                f"({len(points)} points)"
+            ) from exc
+        hulls.append((points[hull.simplices], hull.equations))
+    return hulls
+
+
+def _sample_triangles(triangles: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
+    """``count`` area-weighted uniform points (count, 3) on triangles (T, 3, 3)."""
+    edges_a = triangles[:, 1] - triangles[:, 0]
+    edges_b = triangles[:, 2] - triangles[:, 0]
+    areas = 0.5 * np.linalg.norm(np.cross(edges_a, edges_b), axis=1)
+    chosen = rng.choice(len(triangles), size=count, p=areas / areas.sum())
+    u, v = rng.random(count), rng.random(count)
+    flip = u + v > 1.0
+    u[flip], v[flip] = 1.0 - u[flip], 1.0 - v[flip]
+    return triangles[chosen, 0] + u[:, None] * edges_a[chosen] + v[:, None] * edges_b[chosen]
+
+
+def _inside_any(points: np.ndarray, equations: list[np.ndarray], tol: float) -> np.ndarray:
+    """(N,) whether each point (N, 3) lies in at least one hull given by its planes (F, 4)."""
+    inside = np.zeros(len(points), dtype=bool)
+    for planes in equations:
+        todo = ~inside
+        if not todo.any():
+            break
+        candidate = points[todo]
+        inside[np.flatnonzero(todo)] = np.all(
+            candidate @ planes[:, :3].T + planes[:, 3] <= tol, axis=1
+        )
+    return inside
+
+
+WINDING_BETA = 2.0
+"""Fast winding number: a tree node whose bounding sphere (radius r) is farther than
+``WINDING_BETA * r`` from the point counts as one dipole (Barill et al., 2018)."""
+
+_WINDING_LEAF_SIZE = 8
+_compiled_kernels: dict[str, Any] = {}
+
+
+def _winding_kernel(
+    points: np.ndarray,
+    corners: np.ndarray,
+    left: np.ndarray,
+    right: np.ndarray,
+    start: np.ndarray,
+    stop: np.ndarray,
+    center: np.ndarray,
+    radius: np.ndarray,
+    dipole: np.ndarray,
+    beta: float,
+) -> np.ndarray:
+    """Generalised winding numbers (N,) of points (N, 3) (compiled by numba on first use).
+
+    ``corners`` (F, 3, 3) are the triangles in tree order; node ``k`` holds triangles
+    ``start[k]:stop[k]``, children ``left[k]``/``right[k]`` (-1 for a leaf), its area-weighted
+    centroid, bounding radius and dipole (sum of area times unit normal).
+    """
+    result = np.zeros(len(points))
+    stack = np.empty(128, dtype=np.int64)
+    for i in range(len(points)):
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        total = 0.0
+        depth = 1
+        stack[0] = 0
+        while depth > 0:
+            depth -= 1
+            node = stack[depth]
+            dx = center[node, 0] - px
+            dy = center[node, 1] - py
+            dz = center[node, 2] - pz
+            dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+            if dist > beta * radius[node]:
+                total += (dx * dipole[node, 0] + dy * dipole[node, 1] + dz * dipole[node, 2]) / (
+                    dist * dist * dist
+                )
+            elif left[node] < 0:
+                for t in range(start[node], stop[node]):
+                    ax = corners[t, 0, 0] - px
+                    ay = corners[t, 0, 1] - py
+                    az = corners[t, 0, 2] - pz
+                    bx = corners[t, 1, 0] - px
+                    by = corners[t, 1, 1] - py
+                    bz = corners[t, 1, 2] - pz
+                    cx = corners[t, 2, 0] - px
+                    cy = corners[t, 2, 1] - py
+                    cz = corners[t, 2, 2] - pz
+                    la = np.sqrt(ax * ax + ay * ay + az * az)
+                    lb = np.sqrt(bx * bx + by * by + bz * bz)
+                    lc = np.sqrt(cx * cx + cy * cy + cz * cz)
+                    det = (
+                        ax * (by * cz - bz * cy)
+                        - ay * (bx * cz - bz * cx)
+                        + az * (bx * cy - by * cx)
+                    )
+                    den = (
+                        la * lb * lc
+                        + (ax * bx + ay * by + az * bz) * lc
+                        + (bx * cx + by * cy + bz * cz) * la
+                        + (cx * ax + cy * ay + cz * az) * lb
+                    )
+                    total += 2.0 * np.arctan2(det, den)
+            else:
+                stack[depth] = left[node]
+                stack[depth + 1] = right[node]
+                depth += 2
+        result[i] = total / (4.0 * np.pi)
+    return result
+
+
+def _distance_kernel(
+    points: np.ndarray,
+    corners: np.ndarray,
+    left: np.ndarray,
+    right: np.ndarray,
+    start: np.ndarray,
+    stop: np.ndarray,
+    center: np.ndarray,
+    radius: np.ndarray,
+) -> np.ndarray:
+    """Exact distances (N,) from points (N, 3) to the nearest triangle (compiled by numba).
+
+    Branch and bound over the tree of :func:`_winding_kernel` (a node cannot hold a triangle
+    closer than its centre's distance minus its bounding radius); the point-triangle distance
+    is Ericson's closest-point-on-triangle (Real-Time Collision Detection, 5.1.5).
+    """
+    result = np.empty(len(points))
+    stack = np.empty(128, dtype=np.int64)
+    for i in range(len(points)):
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        best = np.inf
+        depth = 1
+        stack[0] = 0
+        while depth > 0:
+            depth -= 1
+            node = stack[depth]
+            dx = center[node, 0] - px
+            dy = center[node, 1] - py
+            dz = center[node, 2] - pz
+            bound = np.sqrt(dx * dx + dy * dy + dz * dz) - radius[node]
+            if bound > 0.0 and bound * bound >= best:
+                continue
+            if left[node] >= 0:
+                a, b = left[node], right[node]
+                ax = center[a, 0] - px
+                ay = center[a, 1] - py
+                az = center[a, 2] - pz
+                bx = center[b, 0] - px
+                by = center[b, 1] - py
+                bz = center[b, 2] - pz
+                if ax * ax + ay * ay + az * az < bx * bx + by * by + bz * bz:
+                    a, b = b, a  # push the farther child first: the nearer is searched first
+                stack[depth] = a
+                stack[depth + 1] = b
+                depth += 2
+                continue
+            for t in range(start[node], stop[node]):
+                ax, ay, az = corners[t, 0, 0], corners[t, 0, 1], corners[t, 0, 2]
+                abx, aby, abz = corners[t, 1, 0] - ax, corners[t, 1, 1] - ay, corners[t, 1, 2] - az
+                acx, acy, acz = corners[t, 2, 0] - ax, corners[t, 2, 1] - ay, corners[t, 2, 2] - az
+                apx, apy, apz = px - ax, py - ay, pz - az
+                d1 = abx * apx + aby * apy + abz * apz
+                d2 = acx * apx + acy * apy + acz * apz
+                if d1 <= 0.0 and d2 <= 0.0:
+                    qx, qy, qz = ax, ay, az
+                else:
+                    bpx = px - corners[t, 1, 0]
+                    bpy = py - corners[t, 1, 1]
+                    bpz = pz - corners[t, 1, 2]
+                    d3 = abx * bpx + aby * bpy + abz * bpz
+                    d4 = acx * bpx + acy * bpy + acz * bpz
+                    cpx = px - corners[t, 2, 0]
+                    cpy = py - corners[t, 2, 1]
+                    cpz = pz - corners[t, 2, 2]
+                    d5 = abx * cpx + aby * cpy + abz * cpz
+                    d6 = acx * cpx + acy * cpy + acz * cpz
+                    vc = d1 * d4 - d3 * d2
+                    vb = d5 * d2 - d1 * d6
+                    va = d3 * d6 - d5 * d4
+                    if d3 >= 0.0 and d4 <= d3:
+                        qx, qy, qz = corners[t, 1, 0], corners[t, 1, 1], corners[t, 1, 2]
+                    elif d6 >= 0.0 and d5 <= d6:
+                        qx, qy, qz = corners[t, 2, 0], corners[t, 2, 1], corners[t, 2, 2]
+                    elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+                        v = d1 / (d1 - d3)
+                        qx, qy, qz = ax + v * abx, ay + v * aby, az + v * abz
+                    elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+                        w = d2 / (d2 - d6)
+                        qx, qy, qz = ax + w * acx, ay + w * acy, az + w * acz
+                    elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+                        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+                        qx = corners[t, 1, 0] + w * (corners[t, 2, 0] - corners[t, 1, 0])
+                        qy = corners[t, 1, 1] + w * (corners[t, 2, 1] - corners[t, 1, 1])
+                        qz = corners[t, 1, 2] + w * (corners[t, 2, 2] - corners[t, 1, 2])
+                    else:
+                        total = va + vb + vc
+                        if total > 0.0:
+                            v = vb / total
+                            w = vc / total
+                        else:  # degenerate triangle: its first corner
+                            v = 0.0
+                            w = 0.0
+                        qx = ax + abx * v + acx * w
+                        qy = ay + aby * v + acy * w
+                        qz = az + abz * v + acz * w
+                ex, ey, ez = px - qx, py - qy, pz - qz
+                squared = ex * ex + ey * ey + ez * ez
+                if squared < best:
+                    best = squared
+        result[i] = np.sqrt(best)
+    return result
+
+
+class _TriangleTree:
+    """A bounding-sphere tree over a mesh's triangles: exact distances to the surface and a fast
+    generalised winding number (Barill et al., 2018), both O(log faces) per point.
+
+    The winding number is the inside test of :func:`decomposition_report`: exact near the
+    surface (leaf triangles summed by their solid angles), a first-order dipole per tree node
+    far from it (measured error under 0.05 on the real meshes, so the verdict at 1/2 is
+    safe). Unlike ray parity (``mesh.contains``: rays grazing edges are
+    misjudged, and retried in random directions so results change between calls; measured 112
+    of 40,000 points flipping on the couch mesh) or the closest face's pseudo-normal (fooled by
+    coincident faces of opposite orientation, i.e. internal double walls: 5 of 2,000 random
+    points of the couch misjudged, up to 29 mm deep), it is deterministic and right for double
+    walls and self-intersections. Inside: winding number > 1/2. (With ``mesh.contains`` the
+    couch's report at threshold 0.02 gave max 24.9 mm, from interior points taken for outside;
+    the true max is 7.1 mm.)
+    """
+
+    def __init__(self, mesh: trimesh.Trimesh) -> None:
+        triangles = np.asarray(mesh.vertices, dtype=np.float64)[np.asarray(mesh.faces)]
+        centroids = triangles.mean(axis=1)
+        vectors = 0.5 * np.cross(
+            triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]
+        )
+        areas = np.linalg.norm(vectors, axis=1)
+        order = np.arange(len(triangles))
+        nodes: list[list[Any]] = []  # [start, stop, left, right]
+
+        def build(lo: int, hi: int) -> int:
+            index = len(nodes)
+            nodes.append([lo, hi, -1, -1])
+            if hi - lo > _WINDING_LEAF_SIZE:
+                chunk = centroids[order[lo:hi]]
+                axis = int(np.argmax(np.ptp(chunk, axis=0)))
+                mid = (hi - lo) // 2
+                order[lo:hi] = order[lo:hi][np.argpartition(chunk[:, axis], mid)]
+                nodes[index][2] = build(lo, lo + mid)
+                nodes[index][3] = build(lo + mid, hi)
+            return index
+
+        build(0, len(triangles))
+        table = np.asarray(nodes, dtype=np.int64)
+        self.corners = np.ascontiguousarray(triangles[order])
+        weights, points, dipoles = areas[order], centroids[order], vectors[order]
+        self.start, self.stop = table[:, 0].copy(), table[:, 1].copy()
+        self.left, self.right = table[:, 2].copy(), table[:, 3].copy()
+        count = len(table)
+        self.center = np.empty((count, 3))
+        self.radius = np.empty(count)
+        self.dipole = np.empty((count, 3))
+        for k, (lo, hi) in enumerate(zip(self.start, self.stop, strict=True)):
+            w = weights[lo:hi]
+            c = (
+                (points[lo:hi] * w[:, None]).sum(axis=0) / w.sum()
+                if w.sum() > 0
+                else points[lo:hi].mean(axis=0)
+            )
+            self.center[k] = c
+            self.radius[k] = np.sqrt(((self.corners[lo:hi] - c) ** 2).sum(axis=2).max())
+            self.dipole[k] = dipoles[lo:hi].sum(axis=0)
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        """(N,) winding numbers of points (N, 3): about 1 inside, 0 outside, 1/2 on the surface."""
+        return _compiled("winding")(
+            np.ascontiguousarray(points, dtype=np.float64),
+            self.corners,
+            self.left,
+            self.right,
+            self.start,
+            self.stop,
+            self.center,
+            self.radius,
+            self.dipole,
+            WINDING_BETA,
+        )
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """(N,) bool: winding number > 1/2."""
+        return self(points) > 0.5
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """(N,) exact distances (mesh units) from points (N, 3) to the surface."""
+        return _compiled("distance")(
+            np.ascontiguousarray(points, dtype=np.float64),
+            self.corners,
+            self.left,
+            self.right,
+            self.start,
+            self.stop,
+            self.center,
+            self.radius,
+        )
+
+
+def _compiled(name: str) -> Any:
+    """The numba-compiled kernel ``"winding"`` or ``"distance"`` (compiled on first use and
+    cached on disk, so importing this module does not import numba)."""
+    if name not in _compiled_kernels:
+        from numba import njit
+
+        kernel = {"winding": _winding_kernel, "distance": _distance_kernel}[name]
+        _compiled_kernels[name] = njit(cache=True)(kernel)
+    return _compiled_kernels[name]
+
+
+def decomposition_report(
+    mesh: trimesh.Trimesh,
+    parts: Sequence[ConvexPart],
+    *,
+    samples: int = 20000,
+    seed: int = 0,
+    stats: dict[str, Any] | None = None,
+    name: str | None = None,
+) -> DecompositionReport:
+    """Measure how far convex ``parts`` stick out of ``mesh``.
+
+    The deviation is ONE-SIDED, hull to mesh: ``samples`` points drawn uniformly by area
+    (seeded) on the surfaces of the hulls, plus every hull vertex, each at its distance to the
+    mesh surface when it lies outside the mesh and 0 when inside (internal cuts between hulls,
+    faces lying on the mesh). For a mesh that is not a volume (``mesh.is_volume`` False) inside
+    cannot be told: every point counts with its unsigned distance (``inside_test=False``).
+    This is the error an open hand sees: a hull 2 mm out of the surface puts fingers that clear
+    the mesh by 1 mm inside a simulated hull.
+
+    ``extra_volume`` is ``(vol(union of hulls) - vol(mesh)) / vol(mesh)``, with the
+    difference estimated by Monte Carlo over ``samples`` points (seeded) in the bounding box of
+    both (point in any hull by its half-spaces, vectorised; point in mesh by the winding number)
+    and the exact mesh volume as denominator; NaN when the mesh is not a volume.
+
+    Distances are exact point-triangle distances and "inside" is a generalised winding number
+    > 1/2, both over a bounding-sphere tree compiled with numba (:class:`_TriangleTree`):
+    deterministic, unlike ``mesh.contains``, and on the 9,758-face coffee table 0.6 s for 20,000
+    points where ``trimesh.proximity.closest_point`` took 11 s (and was up to 0.02 mm off).
+    The same arguments give the same report; 20,000 samples take 0.5-3 s on the real meshes.
+
+    Args:
+        mesh: the mesh the parts stand for, (V, 3) vertices in the parts' frame and units (m).
+        parts: convex parts (``ConvexPart``; their ``pose`` is applied), e.g. from
+            :func:`convex_decomposition`.
+        samples: surface samples and Monte-Carlo points, >= 100.
+        seed: seed of both samplings.
+        stats: the ``stats`` dict filled by :func:`convex_decomposition` (its ``preprocess``,
+            ``seconds``, ``cache_hit`` and ``cache_path`` are copied into the report).
+        name: label (default: the mesh's ``file_name`` metadata, or "mesh").
+
+    Raises:
+        MeshError: a bad mesh, no parts, a degenerate part or ``samples`` < 100.
+    """
+    start = time.perf_counter()
+    _, _, label = _check_mesh(mesh, name)
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 100:
+        raise MeshError(f"samples: expected an integer >= 100, found {samples!r}")
+    samples = int(samples)
+    parts = tuple(parts)
+    if not parts:
+        raise MeshError(f"{label}: expected at least one convex part, found none")
+    hulls = _hull_equations(parts)
+    rng = np.random.default_rng(seed)
+    inside_test = bool(mesh.is_volume)
+
+    triangles = np.concatenate([triangles for triangles, _ in hulls])
+    surface = _sample_triangles(triangles, samples, rng)
+    corners = np.unique(triangles.reshape(-1, 3), axis=0)
+    points = np.concatenate([surface, corners])
+    extra = math.nan
+    winding = _TriangleTree(mesh)
+    distance = winding.distance(points)
+    if inside_test:
+        distance[winding.contains(points)] = 0.0
+        lo = np.minimum(mesh.bounds[0], corners.min(axis=0))
+        hi = np.maximum(mesh.bounds[1], corners.max(axis=0))
+        volume_points = lo + rng.random((samples, 3)) * (hi - lo)
+        in_hulls = _inside_any(volume_points, [planes for _, planes in hulls], tol=1e-12)
+        in_mesh = np.zeros(samples, dtype=bool)
+        in_box = np.all((volume_points >= mesh.bounds[0]) & (volume_points <= mesh.bounds[1]), 1)
+        in_mesh[in_box] = winding.contains(volume_points[in_box])
+        difference = np.count_nonzero(in_hulls & ~in_mesh) - np.count_nonzero(in_mesh & ~in_hulls)
+        extra = difference / samples * float(np.prod(hi - lo)) / float(mesh.volume)
+    on_surface = distance[:samples]
+
+    stats = stats or {}
+    cache_path = stats.get("cache_path")
+    seconds = stats.get("seconds")
+    return DecompositionReport(
+        name=label,
+        faces=len(mesh.faces),
+        watertight=bool(mesh.is_watertight),
+        inside_test=inside_test,
+        hulls=len(parts),
+        deviation_max=float(distance.max()),
+        deviation_p95=float(np.percentile(on_surface, 95)),
+        deviation_mean=float(on_surface.mean()),
+        extra_volume=float(extra),
+        samples=samples,
+        preprocess=str(stats.get("preprocess") or ""),
+        seconds=math.nan if seconds is None else float(seconds),
+        cache_hit=None if stats.get("cache_hit") is None else bool(stats["cache_hit"]),
+        cache_path="" if cache_path is None else str(cache_path),
+        report_seconds=time.perf_counter() - start,
+    )
+
+
+def parts_to_obj(parts: Sequence[ConvexPart]) -> str:
+    """Wavefront OBJ text of convex parts: each hull its own object ``hull_000``, ``hull_001``...
+
+    Vertices in the parts' frame and units (m for an object's parts); faces wound outward.
+
+    Raises:
+        MeshError: an element is not a ConvexPart.
+    """
+    lines = ["# convex parts written by dg16m (dataset_gen.decomposition)"]
+    offset = 1
+    for index, part in enumerate(parts):
+        if not isinstance(part, ConvexPart):
+            raise MeshError(f"parts[{index}]: expected a ConvexPart, found {type(part).__name__}")
+        hull = part.to_mesh()
+        lines.append(f"o hull_{index:03d}")
+        lines.extend(f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in np.asarray(hull.vertices))
+        lines.extend(f"f {a} {b} {c}" for a, b, c in np.asarray(hull.faces) + offset)
+        offset += len(hull.vertices)
+    return "\n".join(lines) + "\n"

@@ -22,7 +22,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -30,6 +30,7 @@ import numpy as np
 
 from .atomic import write_bytes_atomic
 from .checks import check_fields
+from .clearance import collision_parts
 from .errors import Dg16mError
 from .force_closure import ForceClosureResult
 from .io import (
@@ -37,7 +38,7 @@ from .io import (
     package_version,
     write_dg16m,
 )
-from .objects import GraspObject
+from .objects import ConvexPart, GraspObject
 from .pairing import (
     PairCandidates,
     candidate_pairs,
@@ -48,6 +49,7 @@ from .pairing import (
 )
 from .parallel import Backend, run_resumable
 from .parameters import PAPER
+from .robust import SELECTIONS, RobustSelection, robust_pairs
 from .sampling import SingleArmGrasps, sample_antipodal_grasps
 from .sources import ObjectSource, object_seed
 
@@ -81,6 +83,10 @@ class GenerationParameters:
         check_gripper_collision: reject pairs whose grippers collide (the release does not).
         max_passing, max_failing: pairs kept per object.
         failing_min_loss: failing pairs kept must have a loss above this (N; may be 0).
+        selection: which passing pairs are kept: ``"paper"`` (the paper's gravity-only check,
+            the default, to reproduce it) or ``"robust"`` (also a disturbance motion ratio
+            <= 1 against every load of the simulation protocol, :mod:`dataset_gen.robust`;
+            files then carry ``motion_ratio``).
 
     Raises:
         GenerationError: a value of the wrong type or out of range ("NAME: expected X, found Y").
@@ -100,6 +106,7 @@ class GenerationParameters:
     max_passing: int = PAPER.max_passing
     max_failing: int = PAPER.max_failing
     failing_min_loss: float = PAPER.failing_min_loss
+    selection: Literal["paper", "robust"] = "paper"
 
     def __post_init__(self) -> None:
         check_fields(
@@ -107,8 +114,17 @@ class GenerationParameters:
             error=GenerationError,
             integers={"seed": 0, "n_grasps": 2, "max_passing": 0, "max_failing": 0},
             zero_allowed=("min_center_distance", "failing_min_loss"),
-            skip=("gripper", "convention", "check_gripper_collision"),
+            skip=("gripper", "convention", "check_gripper_collision", "selection"),
         )
+        if self.selection not in SELECTIONS:
+            raise GenerationError(
+                f"selection: expected one of {SELECTIONS}, found {self.selection!r}"
+            )
+        if self.selection == "robust" and self.convention != "physical":
+            raise GenerationError(
+                "selection: expected 'paper' with the release convention (the robust check "
+                "models contacts that push), found 'robust'"
+            )
         if self.convention not in CONVENTIONS:
             raise GenerationError(
                 f"convention: expected one of {CONVENTIONS}, found {self.convention!r}"
@@ -137,6 +153,7 @@ class StageTimes:
     """Seconds spent per stage of one object."""
 
     load: float = 0.0
+    decomposition: float = 0.0
     sampling: float = 0.0
     pairing: float = 0.0
     force_closure: float = 0.0
@@ -173,8 +190,16 @@ def generate_object(
     times = times if times is not None else StageTimes()
     rng = np.random.default_rng(object_seed(params.seed, obj.object_id))
     start = time.perf_counter()
+    parts = collision_parts(obj)
+    times.decomposition = time.perf_counter() - start
+    start = time.perf_counter()
     grasps = sample_antipodal_grasps(
-        obj, gripper=params.gripper, n_grasps=params.n_grasps, mu=params.mu, rng=rng
+        obj,
+        gripper=params.gripper,
+        n_grasps=params.n_grasps,
+        mu=params.mu,
+        rng=rng,
+        collision_parts=parts,
     )
     times.sampling = time.perf_counter() - start
 
@@ -193,9 +218,36 @@ def generate_object(
     times.force_closure = time.perf_counter() - start
 
     start = time.perf_counter()
-    data = _select_and_assemble(obj, params, grasps, candidates, result, rng, object_file)
+    robust = None
+    if params.selection == "robust":
+        robust = _robust_selection(obj, params, grasps, candidates, result, rng)
+        result = replace(result, passed=robust.robust)
+    data = _select_and_assemble(
+        obj, params, grasps, candidates, result, rng, object_file, robust=robust, parts=parts
+    )
     times.selection = time.perf_counter() - start
     return data
+
+
+def _robust_selection(
+    obj: GraspObject,
+    params: GenerationParameters,
+    grasps: SingleArmGrasps,
+    candidates: PairCandidates,
+    result: ForceClosureResult,
+    rng: np.random.Generator,
+) -> RobustSelection:
+    """The robust pairs among the passing candidates, enough of them for ``max_passing``."""
+    points, normals = dual_contacts(grasps, candidates.pairs)
+    return robust_pairs(
+        points,
+        normals,
+        result.passed,
+        rng=rng,
+        wanted=params.max_passing,
+        mass_properties=obj.mass_properties,
+        **params.force_closure_kwargs(),
+    )
 
 
 def _select_and_assemble(
@@ -206,8 +258,12 @@ def _select_and_assemble(
     result: ForceClosureResult,
     rng: np.random.Generator,
     object_file: str,
+    *,
+    robust: RobustSelection | None = None,
+    parts: Sequence[ConvexPart] | None = None,
 ) -> DualGraspSet:
-    """Keep up to ``max_passing`` + ``max_failing`` scored candidates and build the file's data."""
+    """Keep up to ``max_passing`` + ``max_failing`` scored candidates and build the file's data
+    (with the robust selection's motion ratios and counts when given)."""
     points, normals = dual_contacts(grasps, candidates.pairs)
     selection = select_pairs(
         result,
@@ -229,6 +285,10 @@ def _select_and_assemble(
         "passing": int(result.passed.sum()),
         **{f"selection_{k}": int(v) for k, v in selection.counts.items()},
     }
+    extras: dict[str, np.ndarray] = {}
+    if robust is not None:
+        counts.update({f"robust_{k}": int(v) for k, v in robust.counts.items()})
+        extras["motion_ratio"] = robust.ratio[rows]
     return DualGraspSet(
         grasps=dual_poses(grasps, pairs),
         contact_points=points[rows],
@@ -246,6 +306,7 @@ def _select_and_assemble(
             "pair_indices": pairs.astype(np.int64),
             "contact_normals": normals[rows],
             "quality": selection.quality,
+            **extras,
         },
         metadata={
             "object_id": obj.object_id,
@@ -254,6 +315,11 @@ def _select_and_assemble(
             "object_seed": object_seed(params.seed, obj.object_id),
             "counts": counts,
             "generator": f"dg16m {package_version()}",
+            **(
+                {"collision_parts": {"source": "coacd", "count": len(parts)}}
+                if parts is not None
+                else {}
+            ),
         },
     )
 

@@ -63,3 +63,47 @@ class PaperParameters:
 
 PAPER = PaperParameters()
 """The parameters of the DG16M paper and release; import this, never the numbers."""
+
+
+@dataclass(frozen=True)
+class DisturbanceProtocol:
+    """The simulation protocol's loads, bounds and open-hand tolerance (SI units), defined once.
+
+    The simulator's trial protocol (``TrialProtocol``) takes its defaults from here, and
+    so do the generator's open-hand clearance rule (:mod:`dataset_gen.clearance`) and the robust
+    pair selection (:mod:`dataset_gen.robust`), which never import the simulator.
+
+    Attributes:
+        close_time: closing phase, gravity off (s).
+        gravity_time: gravity phase (s).
+        disturbance_time: duration of each of the 12 disturbances (s).
+        ramp_time: each phase's load ramps from the previous one over this time (s).
+        disturbance_force_fraction: each disturbance force is this fraction of the weight.
+        disturbance_torque_arm: lever arm turning the disturbance force into a torque (m).
+        max_displacement: allowed slip of the object at either hand's grasp centre (m).
+        max_rotation_deg: allowed rotation of the object (degrees).
+        invalid_penetration: an open hand deeper than this in the object's collision geometry
+            cannot start a trial, and the generator does not keep it (m).
+    """
+
+    close_time: float = 0.5
+    gravity_time: float = 0.4
+    disturbance_time: float = 0.2
+    ramp_time: float = 0.05
+    disturbance_force_fraction: float = 0.5
+    disturbance_torque_arm: float = 0.05
+    max_displacement: float = 0.02
+    max_rotation_deg: float = 10.0
+    invalid_penetration: float = 5e-4
+
+    @property
+    def held_time(self) -> float:
+        """How long gravity acts on a held object: the gravity phase and the 12 disturbances (s)."""
+        return self.gravity_time + 12 * self.disturbance_time
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+PROTOCOL = DisturbanceProtocol()
+"""The simulation protocol's defaults (beyond the paper: its loads and bounds); import this."""

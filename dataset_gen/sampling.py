@@ -62,14 +62,16 @@ Counts
 :data:`STAGES` are contact-pair counts, non-increasing along the list: a pair counts at a stage
 when at least one of its tried poses got that far. ``kept`` is the number of grasps returned.
 Extra pose-level counts: ``poses_tried``, ``poses_prefiltered`` (sure collisions),
-``poses_collision_free``, ``poses_closed``; and ``batches``, ``normals_flipped``.
+``poses_collision_free``, ``poses_closed``, ``poses_blocked_by_parts`` (closed with good
+contacts but an open hand deeper than the simulator allows in ``collision_parts``); and
+``batches``, ``normals_flipped``.
 """
 
 from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -77,9 +79,10 @@ import numpy as np
 import trimesh
 
 from dataset_gen.checks import check_integer
+from dataset_gen.clearance import OpenHandClearance
 from dataset_gen.errors import Dg16mError
 from dataset_gen.gripper import ContactStatus, GripperModel, contacts_from_pose, get_gripper
-from dataset_gen.objects import GraspObject
+from dataset_gen.objects import ConvexPart, GraspObject
 from dataset_gen.parameters import PAPER
 
 AxisChoice = Literal["normals", "contacts"]
@@ -188,6 +191,7 @@ def sample_antipodal_grasps(
     rays_per_finger: tuple[int, int] = (7, 5),
     axis: AxisChoice = "normals",
     prefilter: bool | None = None,
+    collision_parts: Sequence[ConvexPart] | None = None,
     progress: bool = False,
 ) -> SingleArmGrasps:
     """Sample up to ``n_grasps`` collision-free antipodal grasps on ``obj`` (see the module doc).
@@ -213,6 +217,11 @@ def sample_antipodal_grasps(
         prefilter: before ``contacts_from_pose``, drop poses whose gripper boxes are crossed by
             the surface along a grid of line segments (ray casts; a sure collision, so the
             result is the same, only faster). Default: on when the ray engine is Embree.
+        collision_parts: the convex parts the simulator collides (object frame, m). When given,
+            a grasp is kept only if its open hand is also clear of them by the simulator's rule
+            (:mod:`dataset_gen.clearance`: no box deeper than
+            ``PROTOCOL.invalid_penetration``), so it is valid in simulation; the generator and
+            the benchmark pass a mesh's CoACD parts. ``None``: the exact-mesh test only.
         progress: show a progress bar (tqdm) of the grasps found.
 
     Returns:
@@ -243,6 +252,7 @@ def sample_antipodal_grasps(
         rays_per_finger=(int(rays_per_finger[0]), int(rays_per_finger[1])),
         axis=axis,
         prefilter=_has_fast_rays(mesh) if prefilter is None else bool(prefilter),
+        clearance=OpenHandClearance(collision_parts, model) if collision_parts else None,
     )
     return sampler.run(
         n_grasps=n_grasps,
@@ -350,8 +360,10 @@ class _Sampler:
         rays_per_finger: tuple[int, int],
         axis: AxisChoice,
         prefilter: bool,
+        clearance: OpenHandClearance | None = None,
     ) -> None:
         self.mesh = mesh
+        self.clearance = clearance
         self.axis = axis
         self.model = model
         self.n_approach = n_approach
@@ -374,6 +386,7 @@ class _Sampler:
             poses_closed=0,
             batches=0,
             normals_flipped=0,
+            poses_blocked_by_parts=0,
         )
         self.prefilter = _SureCollisions(mesh, model) if prefilter else None
 
@@ -575,6 +588,11 @@ class _Sampler:
         points, faces, normals, flipped, good = self._contacts(
             poses[rows], jaw_points[rows], jaw_faces[rows], jaw_width[rows]
         )
+        if self.clearance is not None and good.any():
+            candidates = np.flatnonzero(good)
+            clear = self.clearance.clear(poses[rows[candidates]])
+            good[candidates[~clear]] = False
+            self.counts["poses_blocked_by_parts"] += int((~clear).sum())
         accepted = np.zeros(len(poses), dtype=bool)
         accepted[rows[good]] = True
         chunk = _Found(

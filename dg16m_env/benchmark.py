@@ -2,8 +2,12 @@
 
 Building (``dg16m benchmark build``)
 ------------------------------------
-For each object of the procedural ``benchmark`` split (300 objects, 10 families x 30), or of a
-user's meshes with DG16M grasp files:
+For each object of the procedural ``benchmark`` split (300 objects, 10 families x 30), of a
+folder of the user's meshes (``--meshes DIR``: each mesh file is an object, in metres unless
+``--scale``; real meshes are simulated through their CoACD convex parts,
+:func:`dataset_gen.decomposition.object_parts`), or of the user's meshes with DG16M grasp files
+(``--grasps``: a folder of ``<id>.h5`` or a folder written by ``dg16m generate``, which holds
+``grasps/<id>.h5`` and, for procedural objects, ``meshes/``):
 
 1. sample :attr:`BenchmarkParameters.n_grasps` antipodal single-arm grasps (Panda hand);
 2. pair them like the generator (``PAPER.min_center_distance`` centre pruning, gripper-gripper
@@ -15,7 +19,15 @@ user's meshes with DG16M grasp files:
    (``random``, the paper's random dual-arm pairs) and ``n_farthest`` of the pairs that join each
    grasp to the grasp whose centre is farthest from it (``farthest``, the paper's diametrically
    opposite pairing). With a DG16M file instead, draw its stored passing / failing pairs
-   (:func:`choose_file_pairs`);
+   (:func:`choose_file_pairs`) and move their poses from the file's gripper to the Panda hand
+   (:func:`retarget_poses`). Optionally (``BenchmarkSource.reseat_max`` > 0, ``--reseat``:
+   meant for DG16M files whose poses were made for another gripper) re-seat the hands
+   (:mod:`dg16m_env.reseat`): a hand whose open palm or fingers penetrate the object's convex
+   parts deeper than the protocol's ``invalid_penetration`` is moved back along its approach
+   axis in 1 mm steps up to ``reseat_max`` until it clears; a hand that cannot clear stays (its
+   trial is invalid and counts as a failure, the row is kept). Re-seating changes the grasp
+   (the stored contacts stay the file's): every hand's shift is stored
+   (``grasps/reseat_shift``) and how many moved, and how far, is always reported;
 3. label every pair with its success probability (:mod:`dg16m_env.labels`): the trial protocol
    (:mod:`dg16m_env.trial`) at the nominal pose and at K seeded perturbations of it, at two
    levels (held through every disturbance; held under gravity).
@@ -28,18 +40,33 @@ Results do not depend on the number of workers or the backend.
 File schema (``format = "dg16m-benchmark"``, ``schema_version = 2``)
 ----------------------------------------------------------------------
 Root attributes: ``format``, ``schema_version``, ``metadata`` (JSON: parameters, with scene,
-protocol and perturbation; phases, status names, sources, package version).
+protocol and perturbation; phases, status names, sources, package version; ``reseat``, only when
+some object was re-seated: per such object :meth:`dg16m_env.reseat.Reseat.summary`, i.e. the
+limit, hands, hands penetrating before, hands not cleared, hands moved with the median and
+largest shift).
+
+``OUT/manifest.json`` records per object its pairs, trials, labels, invalid nominal trials with
+their reasons (``invalid_reasons``: ``hand0_penetrates``, ``hand1_penetrates``,
+``hands_overlap``) and, when re-seated, the same ``reseat`` summary.
 
 ``objects/`` (O rows): ``ids`` (str), ``families`` (str, "" for meshes), ``seeds`` (int64, -1 for
 meshes), ``files`` (str: mesh file, relative to the build's mesh folder, "" for procedural),
 ``scales`` (float64), ``masses`` (float64, kg), ``parts`` (str: JSON list of
-:meth:`~dataset_gen.objects.ConvexPart.to_dict`, object frame, m).
+:meth:`~dataset_gen.objects.ConvexPart.to_dict`, object frame, m); optional (absent in files
+written before them): ``centers_of_mass`` ((O, 3) float64, m, object frame: where the trial
+applies the weight; absent = not known, ``None``), ``reseat_max`` ((O,) float64, m: the
+re-seating limit the object was built with, 0 = off; absent = 0).
 
 ``grasps/`` (N rows): ``object_index`` (int32 row of ``objects/``), ``poses`` (N, 2, 4, 4) float64
 hand poses gripper -> object frame (m, dg16m grasp frame of the Panda hand),
 ``contact_points`` (N, 4, 3) float64 (m), ``contact_normals`` (N, 4, 3) float64 outward unit
 normals (NaN when the source file has none), ``source`` (int8, index into :data:`SOURCES`),
-``fc_passed`` (bool), ``fc_loss`` (float64, N: force-closure residual).
+``fc_passed`` (bool), ``fc_loss`` (float64, N: force-closure residual); optional:
+``reseat_shift`` ((N, 2) float64, m: how far each hand was moved back along its approach axis
+by re-seating, 0 = not moved; absent = zeros) and ``hand_line_distance`` ((N,) float64, m: the
+distance from the object's centre of mass to the line through the two hands' grasp centres,
+:func:`dg16m_env.trial.grasp_centres`; the weak mode of two parallel-jaw grasps is rotation
+about that line; absent = not known, ``None``).
 
 ``sim/`` (N rows, see :class:`dg16m_env.trial.TrialResults`): ``status`` (int8
 :class:`~dg16m_env.trial.TrialStatus`), ``success`` (bool, the nominal trial held),
@@ -72,6 +99,8 @@ import numpy as np
 
 from dataset_gen.atomic import atomic_path
 from dataset_gen.checks import check_fields, known_fields
+from dataset_gen.clearance import collision_parts
+from dataset_gen.decomposition import object_parts
 from dataset_gen.errors import Dg16mError
 from dataset_gen.force_closure import evaluate
 from dataset_gen.gripper import get_gripper
@@ -81,7 +110,7 @@ from dataset_gen.io import (
     read_dg16m,
     write_array,
 )
-from dataset_gen.objects import ConvexPart, GraspObject, part_from_dict
+from dataset_gen.objects import MESH_SUFFIXES, ConvexPart, GraspObject, part_from_dict
 from dataset_gen.pairing import (
     candidate_pairs,
     dual_contacts,
@@ -94,9 +123,9 @@ from dataset_gen.pairing import (
 from dataset_gen.parallel import Backend, run_resumable
 from dataset_gen.parameters import PAPER
 from dataset_gen.procedural import benchmark_specs
+from dataset_gen.robust import robust_pairs
 from dataset_gen.sampling import sample_antipodal_grasps
 from dataset_gen.sources import ObjectSource, mesh_sources, object_seed, procedural_sources
-from dataset_gen.decomposition import object_parts
 from dg16m_env.labels import (
     LEVELS,
     GraspLabels,
@@ -107,18 +136,21 @@ from dg16m_env.labels import (
     success_probability,
 )
 from dg16m_env.rates import object_rate
+from dg16m_env.reseat import reseat_poses, shift_summary
 from dg16m_env.scene import SceneParameters, compile_scene
-from dg16m_env.trial import PHASES, TrialProtocol, TrialResults, TrialStatus
+from dg16m_env.trial import PHASES, TrialProtocol, TrialResults, TrialStatus, grasp_centres
 
 FORMAT = "dg16m-benchmark"
 SCHEMA_VERSION = 2
 BENCHMARK_FILE = "benchmark.h5"
 OBJECTS_FOLDER = "objects"
 
-SOURCES = ("fc_pass", "fc_fail", "random", "farthest", "file_pass", "file_fail")
+SOURCES = ("fc_pass", "fc_fail", "random", "farthest", "file_pass", "file_fail", "fc_robust")
 """Where a benchmark pair comes from (the arms): force-closure-passing candidates, failing
-candidates with loss > ``PAPER.failing_min_loss``, random candidates, farthest pairs, or the
-passing / failing pairs of a user's DG16M file."""
+candidates with loss > ``PAPER.failing_min_loss``, random candidates, farthest pairs, the
+passing / failing pairs of a user's DG16M file, or robust candidates (passing, and a disturbance
+motion ratio <= 1 against every protocol load, :mod:`dataset_gen.robust`; an extra arm beyond
+the paper, drawn when ``n_robust > 0``)."""
 
 ARMS = ("fc_pass", "fc_fail", "random", "farthest")
 """The paper's four arms (Table III) of a sampled benchmark."""
@@ -147,6 +179,9 @@ class BenchmarkParameters:
         n_random: pairs drawn uniformly among the candidates per object.
         n_farthest: farthest pairs per object (drawn among the pairs joining each grasp to the
             grasp whose centre is farthest from it).
+        n_robust: robust pairs per object (``fc_robust``, beyond the paper; 0, the default,
+            draws none): passing candidates whose disturbance motion ratio is at most 1
+            (:mod:`dataset_gen.robust`). Drawn after the other arms, so they do not change.
         failing_min_loss: failing candidates must have a loss above this (N).
         mu: friction coefficient (sampling, force closure and simulation).
         mass: object mass (kg).
@@ -168,6 +203,7 @@ class BenchmarkParameters:
     n_failing: int = 20
     n_random: int = 20
     n_farthest: int = 20
+    n_robust: int = 0
     failing_min_loss: float = PAPER.failing_min_loss
     mu: float = PAPER.mu
     mass: float = PAPER.mass
@@ -189,6 +225,7 @@ class BenchmarkParameters:
                 "n_failing": 0,
                 "n_random": 0,
                 "n_farthest": 0,
+                "n_robust": 0,
             },
             zero_allowed=("min_center_distance", "failing_min_loss"),
             skip=("scene", "protocol", "perturbation"),
@@ -197,8 +234,12 @@ class BenchmarkParameters:
             object.__setattr__(self, "scene", replace(self.scene, friction=self.mu))
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON-ready fields; ``n_robust`` only when an extra arm is drawn (so a benchmark
+        built without it records the same parameters as before that arm existed)."""
         out = asdict(self)
         out["scene"] = self.scene.to_dict()
+        if out["n_robust"] == 0:
+            del out["n_robust"]
         return out
 
     def force_closure_kwargs(self) -> dict[str, float]:
@@ -241,7 +282,11 @@ class BenchmarkParameters:
 
 @dataclass(frozen=True, eq=False)
 class BenchmarkObject:
-    """One object of a benchmark (see the file schema in the module docstring)."""
+    """One object of a benchmark (see the file schema in the module docstring).
+
+    ``center_of_mass`` ((3,) m, object frame) is ``None`` when the file predates it;
+    ``reseat_max`` (m) is the re-seating limit the object's rows were built with (0 = off).
+    """
 
     object_id: str
     family: str
@@ -250,6 +295,8 @@ class BenchmarkObject:
     scale: float
     mass: float
     parts: tuple[ConvexPart, ...]
+    center_of_mass: np.ndarray | None = None
+    reseat_max: float = 0.0
 
     def source(self, mesh_root: str | os.PathLike[str] | None = None) -> ObjectSource:
         """Where the object comes from (procedural: family and seed; mesh: ``mesh_root / file``
@@ -296,6 +343,10 @@ class Benchmark:
         labels: the success probabilities (every trial's status, the nominal trial's full
             result, the perturbation seeds).
         metadata: parameters and provenance (JSON-ready).
+        reseat_shift: (N, 2) float64 how far re-seating moved each hand back (m; zeros when
+            nothing moved or the file predates it).
+        hand_line_distance: (N,) float64 distance from the object's centre of mass to the line
+            through the hands' grasp centres (m), or ``None`` when the file predates it.
     """
 
     objects: list[BenchmarkObject]
@@ -308,6 +359,12 @@ class Benchmark:
     fc_loss: np.ndarray
     labels: GraspLabels
     metadata: dict[str, Any] = field(default_factory=dict)
+    reseat_shift: np.ndarray | None = None
+    hand_line_distance: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.reseat_shift is None:
+            self.reseat_shift = np.zeros((self.n, 2))
 
     @property
     def n(self) -> int:
@@ -382,6 +439,10 @@ class Benchmark:
             fc_loss=self.fc_loss[take],
             labels=self.labels.select(take),
             metadata=dict(self.metadata),
+            reseat_shift=self.reseat_shift[take],
+            hand_line_distance=(
+                None if self.hand_line_distance is None else self.hand_line_distance[take]
+            ),
         )
 
     def summary(self, *, n_resamples: int = 2000, seed: int = 0) -> dict[str, Any]:
@@ -420,7 +481,8 @@ class Benchmark:
 
 
 def concatenate(parts: Sequence[Benchmark], metadata: Mapping[str, Any] | None = None) -> Benchmark:
-    """One benchmark from several (objects appended in order)."""
+    """One benchmark from several (objects appended in order; hand-line distances only when
+    every part has them)."""
     if not parts:
         raise BenchmarkError("expected at least one object's benchmark, found none")
     objects: list[BenchmarkObject] = []
@@ -443,6 +505,12 @@ def concatenate(parts: Sequence[Benchmark], metadata: Mapping[str, Any] | None =
         fc_loss=np.concatenate([p.fc_loss for p in parts]),
         labels=labels,
         metadata=dict(metadata if metadata is not None else parts[0].metadata),
+        reseat_shift=np.concatenate([p.reseat_shift for p in parts]),
+        hand_line_distance=(
+            np.concatenate([p.hand_line_distance for p in parts])
+            if all(p.hand_line_distance is not None for p in parts)
+            else None
+        ),
     )
 
 
@@ -476,6 +544,12 @@ def write_benchmark(path: str | os.PathLike[str], bench: Benchmark, *, level: in
         write_array(objects, "seeds", np.array([o.seed for o in bench.objects], np.int64), None)
         write_array(objects, "scales", np.array([o.scale for o in bench.objects]), None)
         write_array(objects, "masses", np.array([o.mass for o in bench.objects]), None)
+        write_array(
+            objects, "reseat_max", np.array([o.reseat_max for o in bench.objects], float), None
+        )
+        if bench.objects and all(o.center_of_mass is not None for o in bench.objects):
+            centers = np.array([o.center_of_mass for o in bench.objects], dtype=np.float64)
+            write_array(objects, "centers_of_mass", centers, None)
         grasps = f.create_group("grasps", track_order=False)
         write_array(grasps, "object_index", bench.object_index.astype(np.int32), level)
         write_array(grasps, "poses", bench.poses.astype(np.float64), level)
@@ -484,6 +558,10 @@ def write_benchmark(path: str | os.PathLike[str], bench: Benchmark, *, level: in
         write_array(grasps, "source", bench.source.astype(np.int8), level)
         write_array(grasps, "fc_passed", bench.fc_passed.astype(bool), level)
         write_array(grasps, "fc_loss", bench.fc_loss.astype(np.float64), level)
+        write_array(grasps, "reseat_shift", bench.reseat_shift.astype(np.float64), level)
+        if bench.hand_line_distance is not None:
+            distance = bench.hand_line_distance.astype(np.float64)
+            write_array(grasps, "hand_line_distance", distance, level)
         sim = f.create_group("sim", track_order=False)
         for name in TrialResults.ARRAY_FIELDS:
             write_array(sim, name, np.asarray(getattr(bench.trials, name)), level)
@@ -559,6 +637,16 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
         seeds = _read(f, path, "objects/seeds", (o,), "i")
         scales = _read(f, path, "objects/scales", (o,), "f")
         masses = _read(f, path, "objects/masses", (o,), "f")
+        reseat_max = (
+            _read(f, path, "objects/reseat_max", (o,), "f")
+            if "objects/reseat_max" in f
+            else np.zeros(o)
+        )
+        centers = (
+            _read(f, path, "objects/centers_of_mass", (o, 3), "f")
+            if "objects/centers_of_mass" in f
+            else None
+        )
         index = _read(f, path, "grasps/object_index", (None,), "i")
         n = index.size
         arrays = {
@@ -568,6 +656,16 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
             "source": _read(f, path, "grasps/source", (n,), "i"),
             "fc_passed": _read(f, path, "grasps/fc_passed", (n,), "b"),
             "fc_loss": _read(f, path, "grasps/fc_loss", (n,), "f"),
+            "reseat_shift": (
+                _read(f, path, "grasps/reseat_shift", (n, 2), "f")
+                if "grasps/reseat_shift" in f
+                else np.zeros((n, 2))
+            ),
+            "hand_line_distance": (
+                _read(f, path, "grasps/hand_line_distance", (n,), "f")
+                if "grasps/hand_line_distance" in f
+                else None
+            ),
         }
         sim = {}
         for name in TrialResults.ARRAY_FIELDS:
@@ -608,6 +706,21 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
         )
     if not np.isfinite(arrays["poses"]).all():
         raise BenchmarkError(f"{path}: grasps/poses: expected finite poses, found NaN/inf")
+    optional = {
+        "grasps/reseat_shift": arrays["reseat_shift"],
+        "grasps/hand_line_distance": arrays["hand_line_distance"],
+        "objects/reseat_max": reseat_max,
+        "objects/centers_of_mass": centers,
+    }
+    for key, values in optional.items():
+        if values is None or not values.size:
+            continue
+        if not np.isfinite(values).all():
+            raise BenchmarkError(f"{path}: {key}: expected finite values, found NaN/inf")
+        if key != "objects/centers_of_mass" and values.min() < 0:
+            raise BenchmarkError(
+                f"{path}: {key}: expected values >= 0 m, found {float(values.min())!r}"
+            )
     if n and (arrays["source"].min() < 0 or arrays["source"].max() >= len(SOURCES)):
         raise BenchmarkError(f"{path}: grasps/source: expected values in [0, {len(SOURCES)})")
     objects = []
@@ -625,6 +738,8 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
                 float(scales[i]),
                 float(masses[i]),
                 parts,
+                center_of_mass=None if centers is None else centers[i].astype(np.float64),
+                reseat_max=float(reseat_max[i]),
             )
         )
     try:
@@ -675,11 +790,24 @@ class BenchmarkSource:
         grasp_gripper: the gripper whose frame the file's poses use (the release: robotiq_2f85;
             files written by dg16m record theirs); poses are moved so that their contacts sit at
             the Panda hand's contact depth.
+        reseat_max: re-seating limit (m; 0 = off, the default): each open hand deeper in the
+            object than the protocol's ``invalid_penetration`` is moved back along its approach
+            axis up to this far until it clears (:func:`dg16m_env.reseat.reseat_poses`). Meant
+            for DG16M files made for another gripper; it changes the grasp, and every shift is
+            stored and reported. Recorded per object (``objects/reseat_max``).
     """
 
     source: ObjectSource
     grasp_file: Path | None = None
     grasp_gripper: str | None = None
+    reseat_max: float = 0.0
+
+    def __post_init__(self) -> None:
+        value = self.reseat_max
+        if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
+            raise BenchmarkError(
+                f"{self.object_id}: reseat_max: expected a finite number >= 0 m, found {value!r}"
+            )
 
     @property
     def object_id(self) -> str:
@@ -714,7 +842,7 @@ def file_poses(data: DualGraspSet, rows: np.ndarray, gripper: str | None = None)
 
 
 def _object_metadata(
-    obj: GraspObject, source: ObjectSource, parts: Sequence[ConvexPart]
+    obj: GraspObject, source: ObjectSource, parts: Sequence[ConvexPart], reseat_max: float
 ) -> BenchmarkObject:
     return BenchmarkObject(
         object_id=obj.object_id,
@@ -724,7 +852,25 @@ def _object_metadata(
         scale=float(obj.scale),
         mass=float(obj.mass_properties.mass),
         parts=tuple(parts),
+        center_of_mass=np.asarray(obj.mass_properties.center_of_mass, dtype=np.float64).copy(),
+        reseat_max=float(reseat_max),
     )
+
+
+def hand_line_distance(centres: np.ndarray, center_of_mass: np.ndarray) -> np.ndarray:
+    """(N,) distance (m) from ``center_of_mass`` (3,) to the line through each pair's two grasp
+    centres ``centres`` (N, 2, 3) (:func:`dg16m_env.trial.grasp_centres`, object frame); the
+    distance to the common point when both centres coincide. A dual grasp turns most easily
+    about that line: the further the centre of mass from it, the larger the torque a sideways
+    load puts about it."""
+    centres = np.asarray(centres, dtype=np.float64).reshape(-1, 2, 3)
+    start = centres[:, 0]
+    axis = centres[:, 1] - start
+    length = np.linalg.norm(axis, axis=1)
+    to_com = np.asarray(center_of_mass, dtype=np.float64) - start
+    across = np.linalg.norm(np.cross(axis, to_com), axis=1)
+    point = np.linalg.norm(to_com, axis=1)
+    return np.where(length > 0, across / np.where(length > 0, length, 1.0), point)
 
 
 def sampled_pairs(
@@ -735,7 +881,13 @@ def sampled_pairs(
     Draws from ``rng`` in a fixed order: grasps, the passing block, the failing pool's order,
     the random candidates, the farthest pairs.
     """
-    grasps = sample_antipodal_grasps(obj, n_grasps=params.n_grasps, mu=params.mu, rng=rng)
+    grasps = sample_antipodal_grasps(
+        obj,
+        n_grasps=params.n_grasps,
+        mu=params.mu,
+        rng=rng,
+        collision_parts=collision_parts(obj),
+    )
     candidates = candidate_pairs(grasps, min_center_distance=params.min_center_distance)
     fc_kwargs = params.force_closure_kwargs()
     verdict = score_pairs(grasps, candidates.pairs, **fc_kwargs)
@@ -759,6 +911,19 @@ def sampled_pairs(
         "random": random,
         "farthest": farthest,
     }
+    if params.n_robust > 0:
+        robust = robust_pairs(
+            cand_points,
+            cand_normals,
+            verdict.passed,
+            rng=rng,
+            wanted=params.n_robust,
+            mass_properties=obj.mass_properties,
+            protocol=params.protocol.disturbances(),
+            **fc_kwargs,
+        )
+        found = np.flatnonzero(robust.robust)
+        arms["fc_robust"] = candidates.pairs[_choose(found, params.n_robust, rng)]
     pairs = np.concatenate(list(arms.values())).reshape(-1, 2)
     source = np.concatenate(
         [np.full(len(v), SOURCES.index(k), dtype=np.int8) for k, v in arms.items()]
@@ -836,7 +1001,9 @@ def _file_pairs(
 
 
 def benchmark_object(item: BenchmarkSource, params: BenchmarkParameters) -> Benchmark:
-    """Choose and simulate one object's dual grasps (see the module docstring)."""
+    """Choose, optionally re-seat (``item.reseat_max``; the summary goes to
+    ``metadata["reseat"]``) and simulate one object's dual grasps, with each pair's hand-line
+    distance and the object's centre of mass (see the module docstring)."""
     source = item.source
     data = read_dg16m(item.grasp_file) if item.grasp_file is not None else None
     if data is not None and source.mesh is not None and source.scale is None:
@@ -853,6 +1020,15 @@ def benchmark_object(item: BenchmarkSource, params: BenchmarkParameters) -> Benc
     )
     scene = compile_scene(obj, params=params.scene, parts=parts)
     n = len(rows["poses"])
+    reseat = None
+    if item.reseat_max > 0:
+        reseat = reseat_poses(
+            scene,
+            rows["poses"],
+            max_shift=item.reseat_max,
+            limit=params.protocol.invalid_penetration,
+        )
+        rows["poses"] = reseat.poses
     labels = success_probability(
         scene,
         rows["poses"],
@@ -860,13 +1036,19 @@ def benchmark_object(item: BenchmarkSource, params: BenchmarkParameters) -> Benc
         seeds=row_seeds(params.perturbation.seed, obj.object_id, n),
         protocol=params.protocol,
     )
-    return Benchmark(
-        objects=[_object_metadata(obj, source, parts)],
+    center_of_mass = obj.mass_properties.center_of_mass
+    bench = Benchmark(
+        objects=[_object_metadata(obj, source, parts, item.reseat_max)],
         object_index=np.zeros(n, dtype=np.int32),
         labels=labels,
         metadata=benchmark_metadata(params),
+        reseat_shift=reseat.shift if reseat is not None else np.zeros((n, 2)),
+        hand_line_distance=hand_line_distance(grasp_centres(scene, rows["poses"]), center_of_mass),
         **rows,
     )
+    if reseat is not None:
+        bench.metadata["reseat"] = {obj.object_id: reseat.summary()}
+    return bench
 
 
 def benchmark_metadata(params: BenchmarkParameters) -> dict[str, Any]:
@@ -908,24 +1090,116 @@ def read_split(split: str) -> list[str]:
     return ids
 
 
-def file_benchmark_sources(
+def split_id(name: str) -> str:
+    """An object id from a split entry: a file stem (``couch``) or a file name (``couch.obj``,
+    ``couch.h5``, any mesh suffix) gives the stem; other dots are kept (``table-1.5``)."""
+    path = Path(name.strip())
+    if path.suffix.lower() in {*MESH_SUFFIXES, ".h5"}:
+        return path.stem
+    return path.name
+
+
+def _split_ids(split: Sequence[str]) -> list[str]:
+    ids = [split_id(s) for s in split]
+    repeated = sorted({i for i in ids if ids.count(i) > 1})
+    if repeated:
+        raise BenchmarkError(f"--split: expected each object once, found {repeated} repeated")
+    return ids
+
+
+def _mesh_sources(
+    meshes: str | os.PathLike[str], scale: float | None, allow_any_size: bool
+) -> list[ObjectSource]:
+    try:
+        return mesh_sources(meshes, scale=scale, allow_any_size=allow_any_size)
+    except Dg16mError as exc:
+        raise BenchmarkError(str(exc)) from None
+
+
+def mesh_benchmark_sources(
     meshes: str | os.PathLike[str],
+    split: Sequence[str] | None = None,
+    *,
+    scale: float | None = None,
+    allow_any_size: bool = False,
+    reseat_max: float = 0.0,
+) -> list[BenchmarkSource]:
+    """Sources for a folder of the user's meshes without grasp files: each mesh file is an
+    object (id = file stem) whose pairs are sampled, paired and checked like the procedural
+    ones (:func:`sampled_pairs`).
+
+    Args:
+        meshes: folder of mesh files (:data:`~dataset_gen.objects.MESH_SUFFIXES`).
+        split: the object ids to take, in this order (stems or file names); default all.
+        scale: factor applied to the files' coordinates (default: the files are in metres).
+        allow_any_size: accept objects whose longest side is outside the dual-arm range.
+        reseat_max: re-seating limit (m, see :class:`BenchmarkSource`; 0 = off).
+
+    Raises:
+        BenchmarkError: no folder, no mesh files in it, or a split id without a mesh.
+    """
+    by_stem = {s.object_id: s for s in _mesh_sources(meshes, scale, allow_any_size)}
+    ids = _split_ids(split) if split is not None else list(by_stem)
+    missing = [i for i in ids if i not in by_stem]
+    if missing:
+        raise BenchmarkError(
+            f"--split: expected a mesh file for each id in {meshes}, found none for {missing} "
+            f"(the folder holds {sorted(by_stem)})"
+        )
+    return [BenchmarkSource(by_stem[i], reseat_max=reseat_max) for i in ids]
+
+
+def grasp_folders(
+    grasps: str | os.PathLike[str], meshes: str | os.PathLike[str] | None = None
+) -> tuple[Path, Path]:
+    """The folders of DG16M files and of meshes for ``--grasps`` / ``--meshes``: ``grasps`` is
+    either a folder of ``<id>.h5`` files or a folder written by ``dg16m generate`` (it holds
+    ``grasps/<id>.h5``, ``manifest.json`` and, for procedural objects, ``meshes/``, used when
+    ``meshes`` is not given).
+
+    Raises:
+        BenchmarkError: ``grasps`` is no folder or holds no DG16M files, or no mesh folder is
+            given or found.
+    """
+    root = Path(grasps)
+    if not root.is_dir():
+        raise BenchmarkError(f"--grasps: expected a folder of DG16M files, found no folder {root}")
+    grasp_dir = root
+    if not any(root.glob("*.h5")) and (root / "grasps").is_dir():
+        grasp_dir = root / "grasps"
+    if not any(grasp_dir.glob("*.h5")):
+        raise BenchmarkError(
+            f"--grasps {root}: expected DG16M files <id>.h5 (or a 'dg16m generate' folder with "
+            "grasps/<id>.h5), found none"
+        )
+    if meshes is not None:
+        return grasp_dir, Path(meshes)
+    if grasp_dir != root and (root / "meshes").is_dir():
+        return grasp_dir, root / "meshes"
+    raise BenchmarkError(
+        f"--grasps {root}: expected --meshes (the objects' mesh files) or a meshes/ folder "
+        "beside its grasps/, found neither"
+    )
+
+
+def file_benchmark_sources(
+    meshes: str | os.PathLike[str] | None,
     grasps: str | os.PathLike[str],
     split: Sequence[str] | None = None,
     *,
     grasp_gripper: str | None = None,
+    reseat_max: float = 0.0,
 ) -> list[BenchmarkSource]:
-    """Sources for a user's meshes and DG16M files: ``grasps/<id>.h5`` pairs with the mesh whose
-    file name its ``object/file`` names (or ``meshes/<id>.*``)."""
-    grasp_dir = Path(grasps)
-    if not grasp_dir.is_dir():
-        raise BenchmarkError(
-            f"--grasps: expected a folder of DG16M files, found no folder {grasp_dir}"
-        )
-    by_stem = {s.object_id: s for s in mesh_sources(meshes)}
+    """Sources for a user's meshes and DG16M files: ``<id>.h5`` pairs with the mesh whose
+    file name its ``object/file`` names (or ``<id>.*``). ``grasps`` and ``meshes`` are resolved
+    by :func:`grasp_folders` (a ``dg16m generate`` folder works; ``meshes`` may then be
+    ``None``); ``split`` ids may be stems or file names; ``reseat_max``: see
+    :class:`BenchmarkSource`. Each file's ``object/scale`` is the mesh's scale."""
+    grasp_dir, mesh_dir = grasp_folders(grasps, meshes)
+    by_stem = {s.object_id: s for s in _mesh_sources(mesh_dir, None, False)}
     by_name = {s.mesh.name: s for s in by_stem.values() if s.mesh is not None}
     files = sorted(grasp_dir.glob("*.h5"))
-    ids = list(split) if split is not None else [p.stem for p in files]
+    ids = _split_ids(split) if split is not None else [p.stem for p in files]
     out = []
     for object_id in ids:
         grasp_file = grasp_dir / f"{object_id}.h5"
@@ -935,11 +1209,15 @@ def file_benchmark_sources(
         source = by_name.get(named) or by_stem.get(object_id)
         if source is None:
             raise BenchmarkError(
-                f"{object_id}: expected its mesh {named!r} (or {object_id}.*) in {meshes}, "
+                f"{object_id}: expected its mesh {named!r} (or {object_id}.*) in {mesh_dir}, "
                 "found none"
             )
         source = replace(source, object_id=object_id)
-        out.append(BenchmarkSource(source, grasp_file=grasp_file, grasp_gripper=grasp_gripper))
+        out.append(
+            BenchmarkSource(
+                source, grasp_file=grasp_file, grasp_gripper=grasp_gripper, reseat_max=reseat_max
+            )
+        )
     return out
 
 
@@ -951,7 +1229,7 @@ def _object_task(item: BenchmarkSource, out: str, params: BenchmarkParameters) -
         return {"status": "failed", "files": {}, "error": str(exc)}
     write_benchmark(Path(out) / relative, bench)
     summary = bench.trials.summary()
-    return {
+    entry = {
         "status": "ok",
         "files": {"benchmark": relative},
         "pairs": bench.n,
@@ -959,8 +1237,24 @@ def _object_task(item: BenchmarkSource, out: str, params: BenchmarkParameters) -
         "labelled_success": int(bench.label().sum()),
         "mean_p_success": float(bench.p().mean()) if bench.n else 0.0,
         "invalid": summary["invalid"],
+        "invalid_reasons": bench.trials.invalid_reasons(),
         "max_penetration_m": summary["max_penetration_m"],
     }
+    if item.reseat_max > 0:
+        entry["reseat"] = bench.metadata.get("reseat", {}).get(
+            item.object_id, {"max_shift_m": item.reseat_max, **shift_summary(bench.reseat_shift)}
+        )
+    return entry
+
+
+def _reseat_parameters(items: Sequence[BenchmarkSource]) -> dict[str, Any]:
+    """The re-seating limits of a build, for its manifest's parameters (so a resume with other
+    limits is refused): nothing when every object has it off (manifests of builds without
+    re-seating are unchanged)."""
+    limits = sorted({float(item.reseat_max) for item in items})
+    if limits == [0.0]:
+        return {}
+    return {"reseat_max": limits[0] if len(limits) == 1 else limits}
 
 
 def build_benchmark(
@@ -987,7 +1281,7 @@ def build_benchmark(
         (str(root.resolve()), params),
         root=root,
         kind="benchmark",
-        parameters=json.loads(json.dumps(params.to_dict())),
+        parameters=json.loads(json.dumps({**params.to_dict(), **_reseat_parameters(items)})),
         folders=(OBJECTS_FOLDER,),
         error=BenchmarkError,
         workers=workers,
@@ -1001,6 +1295,10 @@ def build_benchmark(
     if not done:
         raise BenchmarkError(f"{root}: expected at least one object to build, found all failed")
     parts = [read_benchmark(root / manifest["entries"][i]["files"]["benchmark"]) for i in done]
+    metadata = benchmark_metadata(params)
+    reseat = {k: v for part in parts for k, v in part.metadata.get("reseat", {}).items()}
+    if reseat:
+        metadata["reseat"] = reseat
     path = root / BENCHMARK_FILE
-    write_benchmark(path, concatenate(parts, benchmark_metadata(params)))
+    write_benchmark(path, concatenate(parts, metadata))
     return path

@@ -10,9 +10,12 @@ from pathlib import Path
 from typing import Any
 
 from dataset_gen.cli import add_command
+from dataset_gen.parameters import PROTOCOL
+from dg16m_env.reseat import DEFAULT_RESEAT_MAX, RESEAT_STEP  # no MuJoCo: --help stays fast
 
 BENCHMARK_EXAMPLES = (
     "  dg16m benchmark build --out runs/bench10 --limit 10\n"
+    "  dg16m benchmark build --meshes my_meshes/ --out runs/mine\n"
     "  dg16m benchmark info runs/bench10/benchmark.h5\n"
 )
 
@@ -21,8 +24,16 @@ BUILD_EXAMPLES = (
     "  dg16m benchmark build --out runs/benchmark --workers 2\n"
     "  # a quick look: the first 10 objects\n"
     "  dg16m benchmark build --out runs/bench10 --limit 10\n"
-    "  # your own meshes and DG16M files (e.g. the real release), objects listed in split.txt\n"
-    "  dg16m benchmark build --meshes meshes/ --grasps grasps/ --split split.txt --out runs/mine\n"
+    "  # your own meshes (in metres; --scale 0.001 for millimetres): pairs sampled as above\n"
+    "  dg16m benchmark build --meshes my_meshes/ --out runs/mine --split couch,dining_table.obj\n"
+    "  # the shipped real meshes, with 40 robust pairs per object as a fifth arm\n"
+    "  dg16m benchmark build --meshes tests/data/meshes --robust 40 --out runs/real\n"
+    "  # a folder written by 'dg16m generate' (grasps/<id>.h5; --meshes where it has no meshes/)\n"
+    "  dg16m benchmark build --grasps runs/dataset --meshes my_meshes/ --out runs/mine_dg16m\n"
+    "  # release DG16M files (Robotiq 2F-85 poses), objects listed in split.txt, hands that\n"
+    "  # start inside the object moved back up to 30 mm along their approach axis\n"
+    "  dg16m benchmark build --meshes meshes/ --grasps grasps/ --split split.txt --reseat \\\n"
+    "      --out runs/release\n"
     "  # rerun the same command to resume: finished objects are skipped\n"
 )
 
@@ -49,24 +60,70 @@ def register(subparsers: Any) -> None:
         "Sample, pair, check force closure and simulate: one benchmark file.",
         BUILD_EXAMPLES,
         description=(
-            "For each object: sample single-arm grasps, pair them, check force closure, draw "
-            "the four arms (force-closure passing, failing, random and farthest pairs; about "
-            "100), and label each pair by its success probability p over K + 1 MuJoCo trials "
-            "(the nominal hand poses and K = 8 perturbed ones, each hand moved 1 mm and turned "
-            "1 degree; a trial: close, gravity, 12 disturbances; held when the object stays "
-            "within 2 cm and 10 degrees of the hands). Writes OUT/objects/<id>.h5, "
-            "OUT/manifest.json and OUT/benchmark.h5 (schema version 2). Results do not depend "
-            "on --workers or --backend; reruns resume."
+            "For each object (the procedural benchmark, or each mesh file of --meshes): sample "
+            "single-arm grasps, pair them, check force closure, draw the four arms "
+            "(force-closure passing, failing, random and farthest pairs; about 100), and label "
+            "each pair by its success probability p over K + 1 MuJoCo trials (the nominal hand "
+            "poses and K = 8 perturbed ones, each hand moved 1 mm and turned 1 degree; a trial: "
+            "close, gravity, 12 disturbances; held when the object stays within 2 cm and 10 "
+            "degrees of the hands). Meshes are simulated through their CoACD convex parts "
+            "(cached in $DG16M_CACHE_DIR/coacd). With --grasps, the DG16M files' stored passing "
+            "and failing pairs are simulated instead of sampled ones, their poses moved from "
+            "the files' gripper to the Panda hand. --reseat moves each such hand whose open "
+            "palm or fingers start inside the object (deeper than "
+            f"{1000 * PROTOCOL.invalid_penetration:g} mm, the rule that makes a trial invalid) "
+            f"back along its approach axis in {1000 * RESEAT_STEP:g} mm steps until it clears "
+            "(at most MM mm; a hand that cannot clear stays and its trial counts as a failure): "
+            "this "
+            "changes the grasps, and how many hands moved and how far is always reported "
+            "(manifest, benchmark info). Writes OUT/objects/<id>.h5, OUT/manifest.json and "
+            "OUT/benchmark.h5 (schema version 2). Results do not depend on --workers or "
+            "--backend; reruns resume."
         ),
     )
     build.add_argument("--out", type=Path, required=True, help="output folder")
     build.add_argument(
-        "--limit", type=int, default=None, help="only the first N procedural objects"
+        "--limit", type=int, default=None, help="only the first N objects (of the split)"
     )
-    build.add_argument("--meshes", type=Path, help="folder of mesh files (with --grasps)")
-    build.add_argument("--grasps", type=Path, help="folder of DG16M files <id>.h5 (with --meshes)")
     build.add_argument(
-        "--split", default=None, help="object ids: a file (one per line) or id1,id2,..."
+        "--meshes",
+        type=Path,
+        help="folder of mesh files, one object each (id = file stem); alone: pairs are sampled",
+    )
+    build.add_argument(
+        "--grasps",
+        type=Path,
+        help="folder of DG16M files <id>.h5, or a folder written by 'dg16m generate' (its "
+        "grasps/ is used, and its meshes/ when --meshes is not given)",
+    )
+    build.add_argument(
+        "--split",
+        default=None,
+        help="object ids: a file (one per line) or id1,id2,...; file stems or file names "
+        "(couch, couch.obj, couch.h5)",
+    )
+    build.add_argument(
+        "--scale",
+        type=float,
+        default=None,
+        help="factor applied to --meshes coordinates without --grasps (default: the files are "
+        "in metres; 0.001 for millimetres); a DG16M file records its own",
+    )
+    build.add_argument(
+        "--allow-any-size",
+        action="store_true",
+        help="accept --meshes objects whose longest side is outside 0.05-5 m",
+    )
+    build.add_argument(
+        "--reseat",
+        type=float,
+        nargs="?",
+        const=1000 * DEFAULT_RESEAT_MAX,
+        default=None,
+        metavar="MM",
+        help="with --grasps: move open hands that start inside the object back along their "
+        f"approach axis, at most MM mm (default {1000 * DEFAULT_RESEAT_MAX:g}); changes the "
+        "grasps, every shift is stored and reported",
     )
     build.add_argument(
         "--grasp-gripper",
@@ -86,6 +143,15 @@ def register(subparsers: Any) -> None:
         help="perturbed trials per pair besides the nominal one (default: 8, the shipped "
         "benchmark's; fewer is faster and coarser, 0 labels by the nominal trial alone)",
     )
+    build.add_argument(
+        "--robust",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also draw N robust pairs per object (arm fc_robust, beyond the paper: force-closure "
+        "passing and a disturbance motion ratio <= 1 against every protocol load, see "
+        "dataset_gen.robust; default 0: the paper's four arms only)",
+    )
     build.add_argument("--no-progress", action="store_true", help="no progress bar")
     build.set_defaults(handler=_build)
 
@@ -99,8 +165,12 @@ def register(subparsers: Any) -> None:
         "probability p) over all pairs and over pairs with a valid nominal trial, each with an "
         "object-resampled 95% confidence interval, binary label rate and uncertain fraction "
         "(0.2 < p < 0.8). Then the histogram of p, the phases where failed trials broke, "
-        "invalid trials, the hands' penetration and GSR per object family. Only schema "
-        "version 2 files (rebuild older ones with 'dg16m benchmark build').",
+        "invalid trials (with their reasons per object), the hands' penetration, re-seated "
+        "hands (how many moved, median and max shift), per arm the distance from the centre "
+        "of mass to the line through the hands' grasp centres (median, GSR per distance bin; "
+        "'not stored' for files built before it) and the share of pairs with a hand without "
+        "contact after close, and GSR per object family. Only schema version 2 files "
+        "(rebuild older ones with 'dg16m benchmark build').",
     )
     info.add_argument(
         "file", type=Path, nargs="?", default=None, help="benchmark.h5 (default: the shipped one)"
@@ -115,9 +185,66 @@ def register(subparsers: Any) -> None:
         type=Path,
         default=None,
         metavar="PNG",
-        help="also write a 2 x 2 summary figure (GSR per arm, p, failure phases, penetration)",
+        help="also write a 2 x 3 summary figure (GSR per arm, p, failure phases, penetration, "
+        "GSR by hand-line distance, hands without contact after close)",
     )
     info.set_defaults(handler=_info)
+
+
+def _sources(args: argparse.Namespace) -> list[Any]:
+    """The objects of ``dg16m benchmark build``: procedural, a mesh folder, or DG16M files."""
+    import math
+
+    from dg16m_env.benchmark import (
+        BenchmarkError,
+        file_benchmark_sources,
+        mesh_benchmark_sources,
+        procedural_benchmark_sources,
+        read_split,
+    )
+
+    if args.limit is not None and args.limit < 1:
+        raise BenchmarkError(f"--limit: expected an integer >= 1, found {args.limit}")
+    if args.meshes is None and args.grasps is None:
+        if args.split or args.grasp_gripper or args.scale is not None or args.allow_any_size:
+            raise BenchmarkError(
+                "--split/--grasp-gripper/--scale/--allow-any-size: expected only with --meshes "
+                "or --grasps, found them without"
+            )
+        if args.reseat is not None:
+            raise BenchmarkError("--reseat: expected only with --grasps (DG16M files)")
+        return procedural_benchmark_sources(args.limit)
+    reseat_max = 0.0
+    if args.reseat is not None:
+        if args.grasps is None:
+            raise BenchmarkError(
+                "--reseat: expected only with --grasps (DG16M files made for another gripper), "
+                "found --meshes alone (sampled pairs are already clear of the object)"
+            )
+        if not (math.isfinite(args.reseat) and args.reseat > 0):
+            raise BenchmarkError(f"--reseat: expected a positive number of mm, found {args.reseat}")
+        reseat_max = args.reseat / 1000.0
+    split = read_split(args.split) if args.split else None
+    if args.grasps is not None:
+        if args.scale is not None or args.allow_any_size:
+            raise BenchmarkError(
+                "--scale/--allow-any-size: expected only without --grasps (a DG16M file records "
+                "its mesh's scale), found them with --grasps"
+            )
+        items = file_benchmark_sources(
+            args.meshes,
+            args.grasps,
+            split,
+            grasp_gripper=args.grasp_gripper,
+            reseat_max=reseat_max,
+        )
+    else:
+        if args.grasp_gripper:
+            raise BenchmarkError("--grasp-gripper: expected only with --grasps")
+        items = mesh_benchmark_sources(
+            args.meshes, split, scale=args.scale, allow_any_size=args.allow_any_size
+        )
+    return items if args.limit is None else items[: args.limit]
 
 
 def _build(args: argparse.Namespace) -> int:
@@ -125,10 +252,7 @@ def _build(args: argparse.Namespace) -> int:
         BenchmarkError,
         BenchmarkParameters,
         build_benchmark,
-        file_benchmark_sources,
-        procedural_benchmark_sources,
         read_benchmark,
-        read_split,
     )
     from dg16m_env.benchmark_report import format_summary
     from dg16m_env.labels import LabelError, PerturbationSpec
@@ -141,25 +265,11 @@ def _build(args: argparse.Namespace) -> int:
         )
     except LabelError as exc:
         raise BenchmarkError(f"--perturbations: {exc}") from None
-    if (args.meshes is None) != (args.grasps is None):
-        raise BenchmarkError("--meshes and --grasps: expected both or neither, found one")
-    if args.meshes is not None:
-        if args.limit is not None:
-            raise BenchmarkError("--limit: expected only for the procedural benchmark")
-        split = read_split(args.split) if args.split else None
-        items = file_benchmark_sources(
-            args.meshes, args.grasps, split, grasp_gripper=args.grasp_gripper
-        )
-    else:
-        if args.split or args.grasp_gripper:
-            raise BenchmarkError(
-                "--split/--grasp-gripper: expected only with --meshes and --grasps"
-            )
-        items = procedural_benchmark_sources(args.limit)
+    items = _sources(args)
     path = build_benchmark(
         items,
         args.out,
-        BenchmarkParameters(seed=args.seed, perturbation=perturbation),
+        BenchmarkParameters(seed=args.seed, perturbation=perturbation, n_robust=args.robust),
         workers=args.workers,
         backend=args.backend,
         address=args.address,

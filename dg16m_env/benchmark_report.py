@@ -12,7 +12,12 @@ paper's level). The report reads, per arm (:data:`dg16m_env.benchmark.SOURCES`):
 * the binary label rate (``p >= 0.5``) and the uncertain fraction (``0.2 < p < 0.8``);
 
 then the histogram of ``p``, the phase where failed trials broke (every trial, not only the
-nominal one), invalid trials and the hands' penetration in the nominal trials.
+nominal one), invalid trials (with their reasons per object) and the hands' penetration in the
+nominal trials, re-seated hands (how many moved and how far, :mod:`dg16m_env.reseat`), and two
+diagnostics of why grasps fail: per arm, the distance from the object's centre of mass to the
+line through the hands' grasp centres (median, and GSR per distance bin; the weak mode of two
+parallel-jaw grasps is rotation about that line) and the share of pairs with a hand that has
+no contact at the end of *close*.
 
 :func:`benchmark_report` gathers all of it as one JSON-ready dict (finite numbers or ``None``),
 :func:`format_summary` prints it and :func:`plot_summary` draws it.
@@ -31,7 +36,8 @@ import numpy as np
 from dataset_gen.json_values import json_ready
 from dg16m_env.benchmark import SOURCES, Benchmark
 from dg16m_env.labels import LEVELS, UNCERTAIN
-from dg16m_env.trial import PHASES, TrialStatus
+from dg16m_env.reseat import shift_summary
+from dg16m_env.trial import PHASES, InvalidReason, TrialStatus
 
 ARM_DESCRIPTIONS = {
     "fc_pass": "force-closure passing pairs",
@@ -40,6 +46,7 @@ ARM_DESCRIPTIONS = {
     "farthest": "each grasp paired with the grasp farthest from it",
     "file_pass": "passing pairs of the DG16M files",
     "file_fail": "failing pairs of the DG16M files",
+    "fc_robust": "robust pairs: passing, and held against every protocol load (beyond the paper)",
 }
 """What each arm (pair source, :data:`~dg16m_env.benchmark.SOURCES`) holds, for people."""
 
@@ -56,11 +63,25 @@ ARM_COLORS = {
     "farthest": "tab:purple",
     "file_pass": "tab:cyan",
     "file_fail": "tab:brown",
+    "fc_robust": "tab:olive",
 }
 """One colour per arm in the figure."""
 
 HISTOGRAM_BINS = ("0", "(0,0.2]", "(0.2,0.4]", "(0.4,0.6]", "(0.6,0.8]", "(0.8,1)", "1")
 """Bins of the text histogram of ``p``: exactly 0, five intervals of width 0.2, exactly 1."""
+
+HAND_LINE_EDGES_MM = (50.0, 100.0, 150.0, 200.0, 300.0)
+"""Inner edges (mm) of the hand-line-distance bins: < 50, 50-100, 100-150, 150-200, 200-300,
+> 300 (a distance on an edge goes to the upper bin)."""
+
+HAND_LINE_BINS = ("<50", "50-100", "100-150", "150-200", "200-300", ">300")
+"""Labels (mm) of the bins of :data:`HAND_LINE_EDGES_MM`."""
+
+MIN_CONTACTS = 1
+"""A hand with fewer contacts than this at the end of *close* counts as without contact."""
+
+MAX_OBJECT_LINES = 30
+"""Per-object lines printed (invalid reasons, re-seating); the JSON holds every object."""
 
 UNKNOWN_PHASE = "unknown"
 """Failure-phase key of a failed trial that recorded no phase (never seen; kept so that the
@@ -170,6 +191,116 @@ def invalid_trials(bench: Benchmark) -> dict[str, Any]:
     }
 
 
+def invalid_by_object(bench: Benchmark) -> dict[str, dict[str, int]]:
+    """Per object with invalid nominal trials, in object order: ``{object_id: {reason: rows}}``
+    (:class:`~dg16m_env.trial.InvalidReason` names in lower case; objects without invalid rows
+    are left out)."""
+    reasons = bench.trials.invalid_reason.astype(np.int64)
+    out: dict[str, dict[str, int]] = {}
+    for k, obj in enumerate(bench.objects):
+        rows = bench.object_index == k
+        counts = np.bincount(reasons[rows], minlength=len(InvalidReason))
+        entry = {
+            InvalidReason(r).name.lower(): int(c)
+            for r, c in enumerate(counts)
+            if r != InvalidReason.NONE and c
+        }
+        if entry:
+            out[obj.object_id] = entry
+    return out
+
+
+def reseat_report(bench: Benchmark) -> dict[str, Any]:
+    """How many hands re-seating moved, and how far (``grasps/reseat_shift``).
+
+    Returns:
+        ``{"objects", "hands", "moved", "median_m", "max_m", "by_object"}``: the objects built
+        with re-seating on (``reseat_max`` > 0) and their hands, with :func:`shift_summary`
+        over them; ``by_object[id]`` = ``{"reseat_max_m", "hands", "moved", "median_m",
+        "max_m", "invalid_rows"}`` for each such object (its rows still invalid after it).
+    """
+    on = [k for k, o in enumerate(bench.objects) if o.reseat_max > 0]
+    rows = np.isin(bench.object_index, on)
+    by_object: dict[str, Any] = {}
+    for k in on:
+        mine = bench.object_index == k
+        by_object[bench.objects[k].object_id] = {
+            "reseat_max_m": bench.objects[k].reseat_max,
+            "hands": int(2 * mine.sum()),
+            **shift_summary(bench.reseat_shift[mine]),
+            "invalid_rows": int(np.sum(mine & ~bench.trials.valid)),
+        }
+    return {
+        "objects": len(on),
+        "hands": int(2 * rows.sum()),
+        **shift_summary(bench.reseat_shift[rows]),
+        "by_object": by_object,
+    }
+
+
+def hand_line_bins(distance: np.ndarray) -> np.ndarray:
+    """(N,) index into :data:`HAND_LINE_BINS` of each hand-line distance (m)."""
+    return np.searchsorted(np.array(HAND_LINE_EDGES_MM) / 1000.0, distance, side="right")
+
+
+def hand_line(bench: Benchmark) -> dict[str, Any] | None:
+    """Success against the distance from the centre of mass to the line through the two hands'
+    grasp centres, per arm; ``None`` when the file does not store the distance (older files).
+
+    Returns:
+        ``{"bins", "by_arm": {arm: {"pairs", "median_m", "counts", "gsr"}}}``: ``counts`` and
+        ``gsr`` (mean ``p`` at each level, ``None`` in empty bins) per bin of
+        :data:`HAND_LINE_BINS` (mm).
+    """
+    distance = bench.hand_line_distance
+    if distance is None:
+        return None
+    index = hand_line_bins(distance)
+    by_arm: dict[str, Any] = {}
+    for arm in present_arms(bench):
+        rows = bench.arm_rows(arm)
+        entry: dict[str, Any] = {
+            "pairs": int(rows.sum()),
+            "median_m": float(np.median(distance[rows])),
+            "counts": np.bincount(index[rows], minlength=len(HAND_LINE_BINS)).tolist(),
+            "gsr": {},
+        }
+        for level in LEVELS:
+            p = bench.p(level)
+            entry["gsr"][level] = [
+                _mean(p[rows & (index == b)]) for b in range(len(HAND_LINE_BINS))
+            ]
+        by_arm[arm] = entry
+    return {"bins": list(HAND_LINE_BINS), "by_arm": by_arm}
+
+
+def contacts_after_close(bench: Benchmark) -> dict[str, Any]:
+    """Pairs whose nominal trial ran but left a hand with fewer than :data:`MIN_CONTACTS`
+    contacts at the end of *close* (``sim/contacts_after_close``), per arm and pooled.
+
+    Returns:
+        ``{"min_contacts", "pooled": entry, "by_arm": {arm: entry}}``, each entry ``{"valid",
+        "without_contact", "share"}`` (over the valid nominal trials; ``share`` ``None``
+        without any).
+    """
+    valid = bench.trials.valid
+    short = bench.trials.contacts_after_close.min(axis=1) < MIN_CONTACTS
+
+    def entry(rows: np.ndarray) -> dict[str, Any]:
+        ran = rows & valid
+        return {
+            "valid": int(ran.sum()),
+            "without_contact": int((ran & short).sum()),
+            "share": _mean(short[ran].astype(np.float64)),
+        }
+
+    return {
+        "min_contacts": MIN_CONTACTS,
+        "pooled": entry(np.ones(bench.n, dtype=bool)),
+        "by_arm": {arm: entry(bench.arm_rows(arm)) for arm in present_arms(bench)},
+    }
+
+
 def penetration(bench: Benchmark) -> dict[str, Any]:
     """The hands' deepest penetration of the object while held, over the valid nominal trials.
 
@@ -245,7 +376,10 @@ def benchmark_report(bench: Benchmark, *, n_resamples: int = 2000, seed: int = 0
         ``created_by`` (the package that built it), ``p_histogram`` (:func:`p_histogram`,
         full level), ``uncertain`` (:func:`uncertain_overall`), ``failure_phases``
         (:func:`failure_phases`), ``invalid`` (:func:`invalid_trials`), ``penetration``
-        (:func:`penetration`, m) and ``by_family`` (:func:`summary_by_family`).
+        (:func:`penetration`, m), ``by_family`` (:func:`summary_by_family`),
+        ``invalid_by_object`` (:func:`invalid_by_object`), ``reseat`` (:func:`reseat_report`),
+        ``hand_line`` (:func:`hand_line`, ``None`` for older files) and
+        ``contacts_after_close`` (:func:`contacts_after_close`).
     """
     summary = bench.summary(n_resamples=n_resamples, seed=seed)
     return json_ready(
@@ -258,6 +392,10 @@ def benchmark_report(bench: Benchmark, *, n_resamples: int = 2000, seed: int = 0
             "invalid": invalid_trials(bench),
             "penetration": penetration(bench),
             "by_family": summary_by_family(bench),
+            "invalid_by_object": invalid_by_object(bench),
+            "reseat": reseat_report(bench),
+            "hand_line": hand_line(bench),
+            "contacts_after_close": contacts_after_close(bench),
         }
     )
 
@@ -318,7 +456,7 @@ def _header_lines(report: Mapping[str, Any], path: str | os.PathLike[str] | None
         "p = fraction of a pair's trials that held, at two levels:",
         *(f"  {level:8s} {LEVEL_DESCRIPTIONS[level]}" for level in LEVELS),
         "arms:",
-        *(f"  {arm:9s} {ARM_DESCRIPTIONS[arm]}" for arm in report["by_arm"]),
+        *(f"  {arm:9s} {ARM_DESCRIPTIONS.get(arm, arm)}" for arm in report["by_arm"]),
     ]
     return lines
 
@@ -418,6 +556,14 @@ def _nominal_lines(report: Mapping[str, Any]) -> list[str]:
             "  ",
         ),
     ]
+    by_object = report["invalid_by_object"]
+    if by_object:
+        lines.append(f"invalid nominal trials by object ({len(by_object)} objects):")
+        for object_id, counts in list(by_object.items())[:MAX_OBJECT_LINES]:
+            text = ", ".join(f"{reason} {count}" for reason, count in counts.items())
+            lines += _wrap(f"  {object_id}: {text}", "    ")
+        if len(by_object) > MAX_OBJECT_LINES:
+            lines.append(f"  ... and {len(by_object) - MAX_OBJECT_LINES} more objects (--json)")
     if pen["trials"]:
         lines += _wrap(
             f"penetration of the hands while held, {pen['trials']} valid nominal trials: max "
@@ -426,6 +572,73 @@ def _nominal_lines(report: Mapping[str, Any]) -> list[str]:
         )
     else:
         lines.append("penetration of the hands while held: no valid nominal trial")
+    return lines
+
+
+def _mm(value: float | None) -> str:
+    return "n/a" if value is None else f"{1000 * value:.1f} mm"
+
+
+def _reseat_lines(report: Mapping[str, Any]) -> list[str]:
+    reseat = report["reseat"]
+    if not reseat["objects"]:
+        return ["", "re-seating: off (every hand at its given pose)"]
+    lines = [
+        "",
+        *_wrap(
+            f"re-seating (open hands that started inside the object moved back along their "
+            f"approach axis; this changes the grasps): {reseat['objects']} objects, "
+            f"{reseat['moved']} of {reseat['hands']} hands moved, median "
+            f"{_mm(reseat['median_m'])}, max {_mm(reseat['max_m'])}",
+            "  ",
+        ),
+    ]
+    for object_id, row in list(reseat["by_object"].items())[:MAX_OBJECT_LINES]:
+        lines += _wrap(
+            f"  {object_id}: limit {_mm(row['reseat_max_m'])}, {row['moved']} of {row['hands']} "
+            f"hands moved (median {_mm(row['median_m'])}, max {_mm(row['max_m'])}); "
+            f"{row['invalid_rows']} rows still invalid",
+            "    ",
+        )
+    if len(reseat["by_object"]) > MAX_OBJECT_LINES:
+        more = len(reseat["by_object"]) - MAX_OBJECT_LINES
+        lines.append(f"  ... and {more} more objects (--json)")
+    return lines
+
+
+def _diagnostic_lines(report: Mapping[str, Any]) -> list[str]:
+    lines = [
+        "",
+        *_wrap(
+            "hand-line distance: from the object's centre of mass to the line through the two "
+            "hands' grasp centres (a dual grasp turns most easily about that line)"
+        ),
+    ]
+    line = report["hand_line"]
+    if line is None:
+        lines.append("  not stored (older file; rebuild to get it)")
+    else:
+        lines.append("GSR (mean p, full level) by distance bin (mm), pairs in brackets:")
+        lines.append(f"{'arm':9s} {'median':>9s} " + " ".join(f"{b:>12s}" for b in line["bins"]))
+        for arm, row in line["by_arm"].items():
+            cells = " ".join(
+                f"{percent(g).strip() + f' ({c})':>12s}"
+                for g, c in zip(row["gsr"]["full"], row["counts"], strict=True)
+            )
+            lines.append(f"{arm:9s} {_mm(row['median_m']):>9s} {cells}")
+    contacts = report["contacts_after_close"]
+    lines.append(
+        f"a hand without contact at the end of close (< {contacts['min_contacts']} contact), "
+        "share of valid nominal trials:"
+    )
+    lines += _wrap(
+        "  "
+        + ", ".join(
+            f"{arm} {percent(row['share']).strip()} ({row['without_contact']} of {row['valid']})"
+            for arm, row in {"all": contacts["pooled"], **contacts["by_arm"]}.items()
+        ),
+        "  ",
+    )
     return lines
 
 
@@ -469,6 +682,8 @@ def format_summary(
             *_histogram_lines(report),
             *_phase_lines(report),
             *_nominal_lines(report),
+            *_reseat_lines(report),
+            *_diagnostic_lines(report),
             *_family_lines(report),
         ]
     )
@@ -609,25 +824,71 @@ def _plot_penetration(ax: Any, bench: Benchmark, report: Mapping[str, Any]) -> N
     ax.grid(axis="y", alpha=0.3)
 
 
+def _plot_hand_line(ax: Any, report: Mapping[str, Any]) -> None:
+    line = report["hand_line"]
+    ax.set_title("(e) GSR vs distance of the centre of mass from the hand line")
+    ax.set_xlabel("distance from the centre of mass to the line through the grasp centres (mm)")
+    ax.set_ylabel("GSR: mean p, full level (%)")
+    if line is None:
+        ax.text(0.5, 0.5, "not stored (older file)", transform=ax.transAxes, ha="center")
+        return
+    x = np.arange(len(line["bins"]))
+    for arm, row in line["by_arm"].items():
+        gsr = np.array([np.nan if g is None else 100 * g for g in row["gsr"]["full"]])
+        ax.plot(
+            x,
+            gsr,
+            marker="o",
+            color=_arm_color(arm),
+            label=f"{arm} (median {1000 * row['median_m']:.0f} mm)",
+        )
+    ax.set_xticks(x, line["bins"])
+    ax.set_ylim(-3, 103)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+
+
+def _plot_contacts(ax: Any, report: Mapping[str, Any]) -> None:
+    contacts = report["contacts_after_close"]
+    arms = list(contacts["by_arm"])
+    share = [100 * (contacts["by_arm"][a]["share"] or 0.0) for a in arms]
+    ax.bar(np.arange(len(arms)), share, color=[_arm_color(a) for a in arms], edgecolor="black")
+    for xi, arm in enumerate(arms):
+        row = contacts["by_arm"][arm]
+        ax.text(xi, share[xi], f"{row['without_contact']}/{row['valid']}", ha="center", va="bottom")
+    ax.set_xticks(np.arange(len(arms)), arms)
+    ax.set_xlabel("arm (pair source)")
+    ax.set_ylabel("valid nominal trials (%)")
+    ax.set_title(
+        f"(f) a hand with < {contacts['min_contacts']} contact at the end of close, per arm"
+    )
+    ax.set_ylim(0, max(5.0, 1.2 * max(share, default=0.0)))
+    ax.grid(axis="y", alpha=0.3)
+
+
 def plot_summary(
     bench: Benchmark,
     path: str | os.PathLike[str],
     report: Mapping[str, Any] | None = None,
 ) -> None:
-    """A 2 x 2 figure, written atomically as PNG: (a) GSR per arm at both levels with
+    """A 2 x 3 figure, written atomically as PNG: (a) GSR per arm at both levels with
     confidence intervals, (b) the distribution of ``p`` per arm (full level), (c) the failure
     phases of all failed trials per arm (log scale), (d) the penetration of the valid nominal
-    trials (mm, log scale). ``report``: the benchmark's :func:`benchmark_report` when already
-    computed. Never touches pyplot or the matplotlib backend."""
+    trials (mm, log scale), (e) GSR per hand-line-distance bin per arm (when stored), (f) the
+    share of valid nominal trials with a hand without contact after close, per arm.
+    ``report``: the benchmark's :func:`benchmark_report` when already computed. Never touches
+    pyplot or the matplotlib backend."""
     from dataset_gen.figures import new_figure, save_png
 
     report = benchmark_report(bench) if report is None else report
-    fig = new_figure(15, 10.5)
-    axes = fig.subplots(2, 2)
+    fig = new_figure(22, 10.5)
+    axes = fig.subplots(2, 3)
     _plot_gsr(axes[0, 0], report)
     _plot_histogram(axes[0, 1], report)
     _plot_phases(axes[1, 0], report)
     _plot_penetration(axes[1, 1], bench, report)
+    _plot_hand_line(axes[0, 2], report)
+    _plot_contacts(axes[1, 2], report)
     spec = report["perturbation"]
     fig.suptitle(
         f"{report['objects']} objects, {report['pairs']} pairs x {report['trials_per_pair']} "

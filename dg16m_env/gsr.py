@@ -20,12 +20,12 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from dataset_gen.decomposition import object_parts
 from dataset_gen.errors import Dg16mError
 from dataset_gen.objects import ConvexPart
 from dataset_gen.parallel import Backend, run_tasks
 from dataset_gen.parameters import PAPER
 from dataset_gen.sources import ObjectSource
-from dataset_gen.decomposition import object_parts
 from dg16m_env.labels import LEVELS, GraspLabels, PerturbationSpec, success_probability
 from dg16m_env.scene import SceneParameters, compile_scene
 from dg16m_env.trial import TrialProtocol, check_dual_grasps

@@ -19,10 +19,10 @@ from typing import Any
 import numpy as np
 
 from dataset_gen.cli import add_command
+from dataset_gen.decomposition import DecompositionParameters
 from dataset_gen.errors import Dg16mError
 from dataset_gen.json_values import json_ready
 from dataset_gen.parameters import PAPER
-from dataset_gen.decomposition import DecompositionParameters
 
 
 class SimCommandError(Dg16mError, ValueError):
@@ -265,8 +265,8 @@ def _grasp_object(args: argparse.Namespace, object_scale: float):
         family, seed = parse_object_id(args.procedural)
         obj = make_procedural_object(family, seed, mass=args.mass)
         return obj, obj.parts
-    from dataset_gen.objects import load_object
     from dataset_gen.decomposition import object_parts
+    from dataset_gen.objects import load_object
 
     # The grasp file's scale is authoritative: no plausibility check on the object's size.
     obj = load_object(args.mesh, scale=object_scale, mass=args.mass, allow_any_size=True)

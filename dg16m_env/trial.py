@@ -58,7 +58,7 @@ from mujoco import rollout
 from dataset_gen.checks import check_fields, known_fields
 from dataset_gen.errors import Dg16mError
 from dataset_gen.objects import is_rigid
-from dataset_gen.parameters import PAPER
+from dataset_gen.parameters import PAPER, PROTOCOL, DisturbanceProtocol
 from dg16m_env.scene import (
     HAND_NAMES,
     OBJECT_CONTACTS_SENSOR,
@@ -139,15 +139,15 @@ class TrialProtocol:
     """
 
     gravity: float = PAPER.gravity
-    close_time: float = 0.5
-    gravity_time: float = 0.4
-    disturbance_time: float = 0.2
-    ramp_time: float = 0.05
-    disturbance_force_fraction: float = 0.5
-    disturbance_torque_arm: float = 0.05
-    max_displacement: float = 0.02
-    max_rotation_deg: float = 10.0
-    invalid_penetration: float = 5e-4
+    close_time: float = PROTOCOL.close_time
+    gravity_time: float = PROTOCOL.gravity_time
+    disturbance_time: float = PROTOCOL.disturbance_time
+    ramp_time: float = PROTOCOL.ramp_time
+    disturbance_force_fraction: float = PROTOCOL.disturbance_force_fraction
+    disturbance_torque_arm: float = PROTOCOL.disturbance_torque_arm
+    max_displacement: float = PROTOCOL.max_displacement
+    max_rotation_deg: float = PROTOCOL.max_rotation_deg
+    invalid_penetration: float = PROTOCOL.invalid_penetration
     max_speed: float = 50.0
     min_contacts_after_close: int = 1
     batch_size: int = 64
@@ -162,6 +162,14 @@ class TrialProtocol:
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    def disturbances(self) -> DisturbanceProtocol:
+        """The loads, durations, bounds and open-hand tolerance of this protocol, as the
+        generator-side modules (:mod:`dataset_gen.robust`, :mod:`dataset_gen.clearance`) take
+        them."""
+        return DisturbanceProtocol(
+            **{f.name: getattr(self, f.name) for f in fields(DisturbanceProtocol)}
+        )
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> TrialProtocol:

@@ -272,7 +272,7 @@ def test_cli_build_and_info(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert "by_family" in summary
     assert (tmp_path / "s.png").stat().st_size > 10_000
     assert cli_main(["benchmark", "build", "--out", str(tmp_path), "--meshes", str(tmp_path)]) == 2
-    assert "expected both or neither" in capsys.readouterr().err
+    assert "expected mesh files" in capsys.readouterr().err
     bad = ["benchmark", "build", "--out", str(tmp_path / "x"), "--perturbations", "-1"]
     assert cli_main(bad) == 2
     assert "--perturbations: n_perturbations: expected" in capsys.readouterr().err
