@@ -137,6 +137,15 @@ class GenerationParameters:
         if not isinstance(self.gripper, str) or not self.gripper:
             raise GenerationError(f"gripper: expected a gripper name, found {self.gripper!r}")
 
+    def to_dict(self) -> dict[str, Any]:
+        """The fields (stored in files and manifests); ``selection`` only when it is not the
+        paper's, so files made with the paper's selection keep their bytes and older dataset
+        folders still resume."""
+        out = asdict(self)
+        if out["selection"] == "paper":
+            del out["selection"]
+        return out
+
     def force_closure_kwargs(self) -> dict[str, float]:
         """The force-closure check's keyword arguments (mass, gravity, mu, f_high, threshold)."""
         return {
@@ -311,7 +320,7 @@ def _select_and_assemble(
         metadata={
             "object_id": obj.object_id,
             "gripper": params.gripper,
-            "parameters": asdict(params),
+            "parameters": params.to_dict(),
             "object_seed": object_seed(params.seed, obj.object_id),
             "counts": counts,
             "generator": f"dg16m {package_version()}",
@@ -418,7 +427,7 @@ def generate_dataset(
         (str(Path(out).resolve()), params),
         root=Path(out),
         kind="grasps",
-        parameters=asdict(params),
+        parameters=params.to_dict(),
         folders=(GRASPS_FOLDER, "meshes"),
         error=GenerationError,
         workers=workers,

@@ -143,6 +143,7 @@ def test_generator_robust_selection_keeps_only_robust_passing_pairs() -> None:
         obj, GenerationParameters(**common, selection="robust"), object_file="bench.obj"
     )
     assert "motion_ratio" not in paper.extras  # the paper's files are unchanged
+    assert "selection" not in paper.metadata["parameters"]
     ratio = robust.extras["motion_ratio"]
     assert robust.passing_indices.size > 0
     assert (ratio[robust.passing_indices] <= 1.0).all()
