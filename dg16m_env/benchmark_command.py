@@ -265,6 +265,8 @@ def _build(args: argparse.Namespace) -> int:
         )
     except LabelError as exc:
         raise BenchmarkError(f"--perturbations: {exc}") from None
+    if args.robust < 0:
+        raise BenchmarkError(f"--robust: expected an integer >= 0, found {args.robust}")
     items = _sources(args)
     path = build_benchmark(
         items,

@@ -184,6 +184,7 @@ def test_mesh_folder_errors_say_what_was_expected(
         (["--grasps", str(generated), "--meshes", str(mesh_dir), "--scale", "2"], "--scale"),
         (["--split", "a"], "expected only with --meshes or --grasps"),
         (["--meshes", str(mesh_dir), "--limit", "0"], "--limit"),
+        (["--meshes", str(mesh_dir), "--robust", "-1"], "--robust: expected an integer >= 0"),
     ]
     for extra, message in cases:
         assert cli_main(["benchmark", "build", "--out", out, *extra]) == 2, extra
