@@ -826,10 +826,9 @@ class _TriangleTree:
             self.radius[k] = np.sqrt(((self.corners[lo:hi] - c) ** 2).sum(axis=2).max())
             self.dipole[k] = dipoles[lo:hi].sum(axis=0)
 
-    def __call__(self, points: np.ndarray) -> np.ndarray:
-        """(N,) winding numbers of points (N, 3): about 1 inside, 0 outside, 1/2 on the surface."""
-        return _compiled("winding")(
-            np.ascontiguousarray(points, dtype=np.float64),
+    def _tree(self) -> tuple[np.ndarray, ...]:
+        """The arrays both compiled queries walk: triangles, children, ranges, bounding spheres."""
+        return (
             self.corners,
             self.left,
             self.right,
@@ -837,8 +836,12 @@ class _TriangleTree:
             self.stop,
             self.center,
             self.radius,
-            self.dipole,
-            WINDING_BETA,
+        )
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        """(N,) winding numbers of points (N, 3): about 1 inside, 0 outside, 1/2 on the surface."""
+        return _compiled("winding")(
+            np.ascontiguousarray(points, dtype=np.float64), *self._tree(), self.dipole, WINDING_BETA
         )
 
     def contains(self, points: np.ndarray) -> np.ndarray:
@@ -847,16 +850,7 @@ class _TriangleTree:
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         """(N,) exact distances (mesh units) from points (N, 3) to the surface."""
-        return _compiled("distance")(
-            np.ascontiguousarray(points, dtype=np.float64),
-            self.corners,
-            self.left,
-            self.right,
-            self.start,
-            self.stop,
-            self.center,
-            self.radius,
-        )
+        return _compiled("distance")(np.ascontiguousarray(points, dtype=np.float64), *self._tree())
 
 
 def _compiled(name: str) -> Any:
