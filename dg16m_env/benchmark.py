@@ -874,19 +874,25 @@ def hand_line_distance(centres: np.ndarray, center_of_mass: np.ndarray) -> np.nd
 
 
 def sampled_pairs(
-    obj: GraspObject, params: BenchmarkParameters, rng: np.random.Generator
+    obj: GraspObject,
+    params: BenchmarkParameters,
+    rng: np.random.Generator,
+    *,
+    parts: Sequence[ConvexPart] | None = None,
 ) -> dict[str, np.ndarray]:
     """One object's pairs of the four arms (see the module docstring), in arm order.
 
     Draws from ``rng`` in a fixed order: grasps, the passing block, the failing pool's order,
-    the random candidates, the farthest pairs.
+    the random candidates, the farthest pairs, then the robust pairs. ``parts``: the object's
+    convex parts when the caller already has them (the open-hand clearance rule is checked
+    against them; default: :func:`dataset_gen.clearance.collision_parts`).
     """
     grasps = sample_antipodal_grasps(
         obj,
         n_grasps=params.n_grasps,
         mu=params.mu,
         rng=rng,
-        collision_parts=collision_parts(obj),
+        collision_parts=collision_parts(obj, parts),
     )
     candidates = candidate_pairs(grasps, min_center_distance=params.min_center_distance)
     fc_kwargs = params.force_closure_kwargs()
@@ -1016,7 +1022,7 @@ def benchmark_object(item: BenchmarkSource, params: BenchmarkParameters) -> Benc
     rows = (
         _file_pairs(item, data, params, rng)
         if data is not None
-        else sampled_pairs(obj, params, rng)
+        else sampled_pairs(obj, params, rng, parts=parts)
     )
     scene = compile_scene(obj, params=params.scene, parts=parts)
     n = len(rows["poses"])

@@ -59,6 +59,7 @@ from dataset_gen.checks import check_fields, known_fields
 from dataset_gen.errors import Dg16mError
 from dataset_gen.objects import is_rigid
 from dataset_gen.parameters import PAPER, PROTOCOL, DisturbanceProtocol
+from dataset_gen.robust import protocol_loads
 from dg16m_env.scene import (
     HAND_NAMES,
     OBJECT_CONTACTS_SENSOR,
@@ -459,16 +460,8 @@ def schedule(scene: Scene, protocol: TrialProtocol) -> Schedule:
     """The step-by-step phases and loads of a trial (see the module docstring)."""
     steps = protocol.phase_steps(scene.model.opt.timestep)
     phase = np.repeat(np.arange(len(PHASES)), steps)
-    weight = scene.object_mass * protocol.gravity
-    force = protocol.disturbance_force_fraction * weight
-    torque = force * protocol.disturbance_torque_arm
-    per_phase = np.zeros((len(PHASES), 6))
-    per_phase[1:, 2] = -weight  # gravity from the gravity phase on
-    for k, direction in enumerate(DIRECTIONS):
-        axis = "xyz".index(direction[1])
-        sign = 1.0 if direction[0] == "+" else -1.0
-        per_phase[2 + k, axis] += sign * force
-        per_phase[8 + k, 3 + axis] += sign * torque
+    per_phase = np.zeros((len(PHASES), 6))  # close: no load
+    per_phase[1:] = protocol_loads(scene.object_mass, protocol.gravity, protocol.disturbances())[0]
     wrench = per_phase[phase]
     ramp = max(1, round(protocol.ramp_time / scene.model.opt.timestep))
     starts = np.concatenate([[0], np.cumsum(steps)[:-1]])
