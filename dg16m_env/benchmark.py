@@ -138,6 +138,7 @@ from dg16m_env.labels import (
 from dg16m_env.rates import object_rate
 from dg16m_env.reseat import reseat_poses, shift_summary
 from dg16m_env.scene import SceneParameters, compile_scene
+from dg16m_env.simulator import Simulator, check_simulator
 from dg16m_env.trial import PHASES, TrialProtocol, TrialResults, TrialStatus, grasp_centres
 
 FORMAT = "dg16m-benchmark"
@@ -1006,10 +1007,14 @@ def _file_pairs(
     }
 
 
-def benchmark_object(item: BenchmarkSource, params: BenchmarkParameters) -> Benchmark:
+def benchmark_object(
+    item: BenchmarkSource, params: BenchmarkParameters, simulator: Simulator | None = None
+) -> Benchmark:
     """Choose, optionally re-seat (``item.reseat_max``; the summary goes to
-    ``metadata["reseat"]``) and simulate one object's dual grasps, with each pair's hand-line
+    ``metadata["reseat"]``) and simulate one object's dual grasps on ``simulator`` (default C
+    MuJoCo; another engine is named in ``metadata["simulator"]``), with each pair's hand-line
     distance and the object's centre of mass (see the module docstring)."""
+    simulator = check_simulator(simulator)
     source = item.source
     data = read_dg16m(item.grasp_file) if item.grasp_file is not None else None
     if data is not None and source.mesh is not None and source.scale is None:
@@ -1041,13 +1046,14 @@ def benchmark_object(item: BenchmarkSource, params: BenchmarkParameters) -> Benc
         spec=params.perturbation,
         seeds=row_seeds(params.perturbation.seed, obj.object_id, n),
         protocol=params.protocol,
+        simulator=simulator,
     )
     center_of_mass = obj.mass_properties.center_of_mass
     bench = Benchmark(
         objects=[_object_metadata(obj, source, parts, item.reseat_max)],
         object_index=np.zeros(n, dtype=np.int32),
         labels=labels,
-        metadata=benchmark_metadata(params),
+        metadata=benchmark_metadata(params, simulator),
         reseat_shift=reseat.shift if reseat is not None else np.zeros((n, 2)),
         hand_line_distance=hand_line_distance(grasp_centres(scene, rows["poses"]), center_of_mass),
         **rows,
@@ -1057,14 +1063,22 @@ def benchmark_object(item: BenchmarkSource, params: BenchmarkParameters) -> Benc
     return bench
 
 
-def benchmark_metadata(params: BenchmarkParameters) -> dict[str, Any]:
-    return {
+def benchmark_metadata(
+    params: BenchmarkParameters, simulator: Simulator | None = None
+) -> dict[str, Any]:
+    """The file's metadata; a build on another engine than C MuJoCo names it (engine, device,
+    versions) under ``"simulator"`` (files labelled by C MuJoCo, the shipped one included,
+    have no such key)."""
+    out: dict[str, Any] = {
         "parameters": params.to_dict(),
         "phases": list(PHASES),
         "statuses": [s.name.lower() for s in TrialStatus],
         "sources": list(SOURCES),
         "created_by": f"dg16m {package_version()}",
     }
+    if simulator is not None and not simulator.is_default:
+        out["simulator"] = simulator.describe()
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -1227,10 +1241,12 @@ def file_benchmark_sources(
     return out
 
 
-def _object_task(item: BenchmarkSource, out: str, params: BenchmarkParameters) -> dict[str, Any]:
+def _object_task(
+    item: BenchmarkSource, out: str, params: BenchmarkParameters, simulator: Simulator
+) -> dict[str, Any]:
     relative = f"{OBJECTS_FOLDER}/{item.object_id}.h5"
     try:
-        bench = benchmark_object(item, params)
+        bench = benchmark_object(item, params, simulator)
     except Dg16mError as exc:  # a broken mesh or grasp file fails only its own entry
         return {"status": "failed", "files": {}, "error": str(exc)}
     write_benchmark(Path(out) / relative, bench)
@@ -1272,22 +1288,34 @@ def build_benchmark(
     backend: Backend = "local",
     address: str | None = None,
     progress: bool = True,
+    simulator: Simulator | str | None = None,
 ) -> Path:
     """Build (or resume) a benchmark in ``out``; returns the path of ``benchmark.h5``.
+
+    ``simulator`` runs the trials (default C MuJoCo; with MuJoCo Warp on one GPU keep
+    ``workers=1``: one object's trials already fill the device). A build with another engine
+    records it in its manifest's parameters (a resume with another engine is refused) and in
+    the file's metadata.
 
     Raises:
         BenchmarkError: duplicate ids, ``out`` holds a benchmark made with other parameters, or
             no object succeeded.
+        SimulatorError: the simulator cannot run here (checked before any object).
     """
     params = params or BenchmarkParameters()
+    simulator = check_simulator(simulator)
+    simulator.check_available()
     root = Path(out)
+    engine = {} if simulator.is_default else {"simulator": simulator.name}
     manifest = run_resumable(
         _object_task,
         items,
-        (str(root.resolve()), params),
+        (str(root.resolve()), params, simulator),
         root=root,
         kind="benchmark",
-        parameters=json.loads(json.dumps({**params.to_dict(), **_reseat_parameters(items)})),
+        parameters=json.loads(
+            json.dumps({**params.to_dict(), **_reseat_parameters(items), **engine})
+        ),
         folders=(OBJECTS_FOLDER,),
         error=BenchmarkError,
         workers=workers,
@@ -1301,7 +1329,7 @@ def build_benchmark(
     if not done:
         raise BenchmarkError(f"{root}: expected at least one object to build, found all failed")
     parts = [read_benchmark(root / manifest["entries"][i]["files"]["benchmark"]) for i in done]
-    metadata = benchmark_metadata(params)
+    metadata = benchmark_metadata(params, simulator)
     reseat = {k: v for part in parts for k, v in part.metadata.get("reseat", {}).items()}
     if reseat:
         metadata["reseat"] = reseat

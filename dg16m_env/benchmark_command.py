@@ -12,6 +12,7 @@ from typing import Any
 from dataset_gen.cli import add_command
 from dataset_gen.parameters import PROTOCOL
 from dg16m_env.reseat import DEFAULT_RESEAT_MAX, RESEAT_STEP  # no MuJoCo: --help stays fast
+from dg16m_env.simulator import add_simulator_arguments, simulator_from_args
 
 BENCHMARK_EXAMPLES = (
     "  dg16m benchmark build --out runs/bench10 --limit 10\n"
@@ -35,6 +36,8 @@ BUILD_EXAMPLES = (
     "  dg16m benchmark build --meshes meshes/ --grasps grasps/ --split split.txt --reseat \\\n"
     "      --out runs/release\n"
     "  # rerun the same command to resume: finished objects are skipped\n"
+    "  # on a GPU with MuJoCo Warp (pip install 'dg16m[warp]'): one object's trials at once\n"
+    "  dg16m benchmark build --out runs/benchmark_gpu --simulator warp --device cuda:0\n"
 )
 
 INFO_EXAMPLES = (
@@ -152,6 +155,7 @@ def register(subparsers: Any) -> None:
         "passing and a disturbance motion ratio <= 1 against every protocol load, see "
         "dataset_gen.robust; default 0: the paper's four arms only)",
     )
+    add_simulator_arguments(build)
     build.add_argument("--no-progress", action="store_true", help="no progress bar")
     build.set_defaults(handler=_build)
 
@@ -267,6 +271,7 @@ def _build(args: argparse.Namespace) -> int:
         raise BenchmarkError(f"--perturbations: {exc}") from None
     if args.robust < 0:
         raise BenchmarkError(f"--robust: expected an integer >= 0, found {args.robust}")
+    simulator = simulator_from_args(args)
     items = _sources(args)
     path = build_benchmark(
         items,
@@ -276,6 +281,7 @@ def _build(args: argparse.Namespace) -> int:
         backend=args.backend,
         address=args.address,
         progress=not args.no_progress,
+        simulator=simulator,
     )
     print(format_summary(read_benchmark(path), path=path))
     print(f"wrote {path}")

@@ -11,6 +11,7 @@ from typing import Any
 
 from dataset_gen.cli import add_command
 from dataset_gen.errors import Dg16mError
+from dg16m_env.simulator import add_simulator_arguments, simulator_from_args
 
 EVALUATE_EXAMPLES = (
     "  # score a submission file: force-closure efficiency and simulated success\n"
@@ -138,6 +139,7 @@ def register(subparsers: Any) -> None:
         "runs/predictor_submission.h5)",
     )
     _predictor_options(ev)
+    add_simulator_arguments(ev)
     ev.add_argument("--list", action="store_true", help="list the registered evaluators and exit")
     ev.add_argument("--no-progress", action="store_true", help="no progress bars")
     ev.set_defaults(handler=_evaluate)
@@ -222,6 +224,12 @@ def _evaluate(args: argparse.Namespace) -> int:
             f"found {len(subjects)} ({', '.join(subjects) or 'none'})"
         )
     kind = subjects[0]
+    simulator = simulator_from_args(args)
+    if not simulator.is_default and kind in ("classifier", "policy"):
+        raise EvaluateCommandError(
+            f"--simulator {simulator.name}: expected a submission or --predictor (the gsr "
+            f"evaluator runs trials), found --{kind}"
+        )
     progress = not args.no_progress
     started = time.perf_counter()
     results: dict[str, Any] = {}
@@ -254,6 +262,7 @@ def _evaluate(args: argparse.Namespace) -> int:
                 seed=args.seed,
                 n_perturbations=args.perturbations,
                 progress=progress,
+                simulator=simulator,
             )
             results = {name: ev.evaluate(submission) for name, ev in built.items()}
     for result in results.values():

@@ -28,6 +28,7 @@ from dataset_gen.parameters import PAPER
 from dataset_gen.sources import ObjectSource
 from dg16m_env.labels import LEVELS, GraspLabels, PerturbationSpec, success_probability
 from dg16m_env.scene import SceneParameters, compile_scene
+from dg16m_env.simulator import Simulator, check_simulator
 from dg16m_env.trial import TrialProtocol, check_dual_grasps
 
 
@@ -116,14 +117,15 @@ def evaluate_object(
     scene_params: SceneParameters,
     protocol: TrialProtocol,
     spec: PerturbationSpec | None = None,
+    simulator: Simulator | None = None,
 ) -> GraspLabels:
     """Load, compile once and label every dual grasp of ``job`` (per-row seeds from
-    ``(spec.seed, object id)``)."""
+    ``(spec.seed, object id)``) with ``simulator`` (default C MuJoCo)."""
     poses = check_dual_grasps(job.poses)
     obj = job.source.load(job.mass)
     parts = job.parts if job.parts is not None else object_parts(obj)
     scene = compile_scene(obj, params=scene_params, parts=parts)
-    return success_probability(scene, poses, spec=spec, protocol=protocol)
+    return success_probability(scene, poses, spec=spec, protocol=protocol, simulator=simulator)
 
 
 def _task(
@@ -131,9 +133,10 @@ def _task(
     scene_params: SceneParameters,
     protocol: TrialProtocol,
     spec: PerturbationSpec,
+    simulator: Simulator,
 ) -> GraspLabels | str:
     try:
-        return evaluate_object(job, scene_params, protocol, spec)
+        return evaluate_object(job, scene_params, protocol, spec, simulator)
     except Dg16mError as exc:  # a broken mesh fails only its own object
         return str(exc)
 
@@ -148,13 +151,18 @@ def evaluate_objects(
     backend: Backend = "local",
     address: str | None = None,
     progress: bool = False,
+    simulator: Simulator | str | None = None,
 ) -> GsrResult:
     """Success probabilities of every job's dual grasps, objects in parallel (a progress bar
-    over objects when ``progress``).
+    over objects when ``progress``), trials on ``simulator`` (default C MuJoCo; with MuJoCo
+    Warp on one GPU use ``workers=1``: each object's trials already fill the device).
 
     Raises:
         GsrError: duplicate object ids.
+        SimulatorError: the simulator cannot run here (checked before any object).
     """
+    simulator = check_simulator(simulator)
+    simulator.check_available()
     ids = [job.object_id for job in jobs]
     if len(set(ids)) != len(ids):
         raise GsrError(
@@ -165,6 +173,7 @@ def evaluate_objects(
         scene_params or SceneParameters(),
         protocol or TrialProtocol(),
         spec or PerturbationSpec(),
+        simulator,
     )
     results = run_tasks(_task, list(jobs), args, workers=workers, backend=backend, address=address)
     for job, result in tqdm(results, total=len(jobs), desc="gsr", disable=not progress):

@@ -34,6 +34,7 @@ from dataset_gen.checks import check_fields, check_integer, known_fields
 from dataset_gen.errors import Dg16mError
 from dataset_gen.sources import object_seed
 from dg16m_env.scene import Scene
+from dg16m_env.simulator import Simulator
 from dg16m_env.trial import (
     PHASES,
     TrialProtocol,
@@ -328,6 +329,7 @@ def success_probability(
     seeds: np.ndarray | None = None,
     protocol: TrialProtocol | None = None,
     progress: bool = False,
+    simulator: Simulator | str | None = None,
 ) -> GraspLabels:
     """Success probabilities of N dual grasps on one object (nominal + K perturbed trials each).
 
@@ -338,6 +340,9 @@ def success_probability(
         seeds: (N,) per-row seeds; default :func:`row_seeds` of ``(spec.seed, scene.object_id)``.
         protocol: the trial protocol (default :class:`~dg16m_env.trial.TrialProtocol`).
         progress: show a progress bar over trial batches.
+        simulator: the physics engine (default C MuJoCo; :mod:`dg16m_env.simulator`). All
+            K + 1 trials of every row of the object go through it together, so MuJoCo Warp
+            steps them as one batch of worlds.
 
     Returns:
         :class:`GraspLabels` in the order of ``grasps``.
@@ -345,6 +350,7 @@ def success_probability(
     Raises:
         TrialError: malformed grasps.
         LabelError: malformed seeds.
+        SimulatorError: ``"warp"`` without its optional extra or device.
     """
     spec = spec or PerturbationSpec()
     grasps = check_dual_grasps(grasps)
@@ -353,7 +359,11 @@ def success_probability(
         seeds = row_seeds(spec.seed, scene.object_id, n)
     everything = trial_poses(scene, grasps, seeds, spec)
     results = run_trials(
-        scene, everything.reshape(n * trials, 2, 4, 4), protocol, progress=progress
+        scene,
+        everything.reshape(n * trials, 2, 4, 4),
+        protocol,
+        progress=progress,
+        simulator=simulator,
     )
     return GraspLabels(
         nominal=results.select(np.arange(n) * trials),

@@ -23,6 +23,7 @@ from dataset_gen.decomposition import DecompositionParameters
 from dataset_gen.errors import Dg16mError
 from dataset_gen.json_values import json_ready
 from dataset_gen.parameters import PAPER
+from dg16m_env.simulator import add_simulator_arguments, simulator_from_args
 
 
 class SimCommandError(Dg16mError, ValueError):
@@ -202,6 +203,7 @@ def register(subparsers: Any) -> None:
         "--perturbation-seed", type=int, default=0, help="seed of the perturbations (default 0)"
     )
     run.add_argument("--json", action="store_true", help="print JSON instead of text")
+    add_simulator_arguments(run)
     run.set_defaults(handler=_run)
 
 
@@ -549,7 +551,12 @@ def _force_closure_rates(labels: Any, n_passing: int) -> dict[str, dict[str, Any
 
 
 def _run_payload(
-    file: Path, object_id: str, labels: Any, n_passing: int, hits: dict[str, int]
+    file: Path,
+    object_id: str,
+    labels: Any,
+    n_passing: int,
+    hits: dict[str, int],
+    simulator: dict[str, Any],
 ) -> dict[str, Any]:
     """The JSON report of ``dg16m sim run`` (machine-readable: full precision, NaN as null)."""
     return {
@@ -562,6 +569,7 @@ def _run_payload(
         "force_closure": _force_closure_rates(labels, n_passing),
         "p_success": labels.p_success.tolist(),
         "p_gravity": labels.p_gravity.tolist(),
+        "simulator": simulator,
     }
 
 
@@ -573,6 +581,8 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.limit is not None and args.limit < 1:
         raise SimCommandError(f"--limit: expected an integer >= 1, found {args.limit}")
+    simulator = simulator_from_args(args)
+    simulator.check_available()
     defaults = PerturbationSpec()
     spec = PerturbationSpec(
         n_perturbations=(
@@ -590,14 +600,22 @@ def _run(args: argparse.Namespace) -> int:
     scene = compile_scene(obj, parts=parts)
     poses = file_poses(data, rows, args.gripper)
     labels = success_probability(
-        scene, poses, spec=spec, progress=not args.json and sys.stderr.isatty()
+        scene,
+        poses,
+        spec=spec,
+        progress=not args.json and sys.stderr.isatty(),
+        simulator=simulator,
     )
     hits = _open_hand_hits(scene, poses, labels.nominal)
     if args.json:
-        payload = _run_payload(args.file, obj.object_id, labels, passing.size, hits)
+        payload = _run_payload(
+            args.file, obj.object_id, labels, passing.size, hits, simulator.describe()
+        )
         print(json.dumps(payload, indent=2))
         return 0
     lines = _sim_run_report(args.file, obj.object_id, labels, passing.size, hits)
+    if not simulator.is_default:
+        lines.insert(1, f"  trials on MuJoCo Warp, device {simulator.warp_device}")
     if hits:
         lines += _penetration_advice(args, file_gripper(data, args.gripper))
     print("\n".join(lines))

@@ -67,6 +67,7 @@ from dg16m_env.scene import (
     quat_from_matrix,
     quat_to_matrix,
 )
+from dg16m_env.simulator import Simulator, check_simulator
 
 DIRECTIONS = ("+x", "-x", "+y", "-y", "+z", "-z")
 """Disturbance directions, world axes = the object's initial frame."""
@@ -498,21 +499,32 @@ def _control_layout(scene: Scene) -> tuple[int, dict[str, np.ndarray]]:
     return size, layout
 
 
-def trial_controls(
-    scene: Scene, grasps: np.ndarray, plan: Schedule, *, squeeze: float | None = None
+def trial_control_vectors(
+    scene: Scene, grasps: np.ndarray, *, squeeze: float | None = None
 ) -> np.ndarray:
-    """(N, T, C) open-loop controls: squeeze, hand poses and object wrench at every step."""
+    """(N, C) each trial's constant controls (``CONTROL_SPEC`` layout): the squeeze force and
+    the hands' poses, with no wrench on the object."""
     size, layout = _control_layout(scene)
     n = len(grasps)
-    controls = np.zeros((n, plan.nstep, size))
+    controls = np.zeros((n, size))
     force = scene.params.squeeze_force if squeeze is None else squeeze
-    controls[:, :, layout["ctrl"][scene.squeeze_actuators]] = force
+    controls[:, layout["ctrl"][scene.squeeze_actuators]] = force
     mocap_pos = np.zeros((n, scene.model.nmocap, 3))
     mocap_quat = np.zeros((n, scene.model.nmocap, 4))
     mocap_pos[:, scene.hand_mocap] = grasps[:, :, :3, 3]
     mocap_quat[:, scene.hand_mocap] = quat_from_matrix(grasps[:, :, :3, :3])
-    controls[:, :, layout["mocap_pos"]] = mocap_pos.reshape(n, 1, -1)
-    controls[:, :, layout["mocap_quat"]] = mocap_quat.reshape(n, 1, -1)
+    controls[:, layout["mocap_pos"]] = mocap_pos.reshape(n, -1)
+    controls[:, layout["mocap_quat"]] = mocap_quat.reshape(n, -1)
+    return controls
+
+
+def trial_controls(
+    scene: Scene, grasps: np.ndarray, plan: Schedule, *, squeeze: float | None = None
+) -> np.ndarray:
+    """(N, T, C) open-loop controls: squeeze, hand poses and object wrench at every step."""
+    _, layout = _control_layout(scene)
+    constant = trial_control_vectors(scene, grasps, squeeze=squeeze)
+    controls = np.repeat(constant[:, None], plan.nstep, axis=1)
     xfrc = layout["xfrc_applied"].reshape(scene.model.nbody, 6)[scene.object_body]
     controls[:, :, xfrc] = plan.wrench[None]
     return controls
@@ -740,14 +752,53 @@ def measure_steps(
     else:
         ref_pos, ref_quat, _ = object_states(scene, reference)
         displacement, rotation = motion_from(pos, quat, anchors, ref_pos, ref_quat)
-    finite = np.isfinite(states).all(axis=2)
-    timestep = scene.model.opt.timestep
-    expected_time = timestep * np.arange(first_step + 1, first_step + states.shape[1] + 1)
     count_at, dist_at, hand_at = sensor_slices(scene)
     with np.errstate(invalid="ignore"):
-        stalled = np.abs(states[:, :, 0] - expected_time) > 0.5 * timestep
-        fast = np.linalg.norm(vel, axis=-1) > protocol.max_speed
         depth = np.where(sensors[:, :, count_at] > 0, -sensors[:, :, dist_at], 0.0)
+    return step_measures(
+        scene,
+        first_step,
+        protocol,
+        time=states[:, :, 0],
+        displacement=displacement,
+        rotation=rotation,
+        finite=np.isfinite(states).all(axis=2),
+        speed=np.linalg.norm(vel, axis=-1),
+        depth=depth,
+        hand_contacts=sensors[:, :, hand_at],
+    )
+
+
+def step_measures(
+    scene: Scene,
+    first_step: int,
+    protocol: TrialProtocol,
+    *,
+    time: np.ndarray,
+    displacement: np.ndarray,
+    rotation: np.ndarray,
+    finite: np.ndarray,
+    speed: np.ndarray,
+    depth: np.ndarray,
+    hand_contacts: np.ndarray,
+) -> StepMeasures:
+    """:class:`StepMeasures` from per-step quantities ((N, W) unless noted), judging what
+    breaks a trial: a non-finite state, a stalled clock, a speed over ``max_speed``.
+
+    Args:
+        first_step: index of the first of the W steps.
+        time: simulation time after each step (s).
+        displacement, rotation: slip (m) and rotation (degrees), as :func:`motion_from`.
+        finite: the whole state is finite.
+        speed: the object's linear speed (m/s).
+        depth: deepest object contact penetration (m, >= 0).
+        hand_contacts: (N, W, 2) contacts between the object and each hand.
+    """
+    timestep = scene.model.opt.timestep
+    expected_time = timestep * np.arange(first_step + 1, first_step + time.shape[1] + 1)
+    with np.errstate(invalid="ignore"):
+        stalled = np.abs(time - expected_time) > 0.5 * timestep
+        fast = speed > protocol.max_speed
     return StepMeasures(
         displacement=displacement,
         rotation=rotation,
@@ -755,7 +806,7 @@ def measure_steps(
         broken=~finite | stalled | fast,
         fast=fast,
         depth=depth,
-        hand_contacts=sensors[:, :, hand_at],
+        hand_contacts=hand_contacts,
     )
 
 
@@ -862,6 +913,7 @@ def run_trials(
     *,
     progress: bool = False,
     early_exit: bool = True,
+    simulator: Simulator | str | None = None,
 ) -> TrialResults:
     """Run the trial protocol on N dual grasps of one object.
 
@@ -872,14 +924,19 @@ def run_trials(
         progress: show a progress bar over batches.
         early_exit: stop simulating a trial at the end of the phase where it failed (its verdict
             is then certain; ``False`` runs every trial to the end, for checking that claim).
+        simulator: the physics engine (:class:`~dg16m_env.simulator.Simulator` or its name;
+            default C MuJoCo). With ``"warp"`` batches hold up to ``simulator.worlds`` trials
+            (:mod:`dg16m_env.warp_trials`); the validity check always runs in C MuJoCo.
 
     Returns:
         :class:`TrialResults` in the order of ``grasps``.
 
     Raises:
         TrialError: malformed grasps.
+        SimulatorError: ``"warp"`` without its optional extra or device.
     """
     protocol = protocol or TrialProtocol()
+    simulator = check_simulator(simulator)
     grasps = check_dual_grasps(grasps)
     n = len(grasps)
     results = TrialResults.empty(n, protocol)
@@ -890,15 +947,29 @@ def run_trials(
     if runnable.size == 0:
         return results
     plan = schedule(scene, protocol)
-    data = mujoco.MjData(scene.model)
-    batches = list(_batches(runnable, protocol.batch_size))
+    if simulator.is_default:
+        data = mujoco.MjData(scene.model)
+        size = protocol.batch_size
+
+        def run_batch(poses: np.ndarray) -> TrialResults:
+            return _run_batch(scene, poses, plan, protocol, data, early_exit)
+    else:
+        from dg16m_env.warp_trials import WarpRunner
+
+        runner = WarpRunner(scene, plan, simulator)
+        size = simulator.worlds
+
+        def run_batch(poses: np.ndarray) -> TrialResults:
+            return runner.run_batch(poses, protocol, early_exit)
+
+    batches = list(_batches(runnable, size))
     iterator: Any = batches
     if progress:
         from tqdm import tqdm
 
         iterator = tqdm(batches, unit="batch", desc=f"trials {scene.object_id}")
     for rows in iterator:
-        batch = _run_batch(scene, grasps[rows], plan, protocol, data, early_exit)
+        batch = run_batch(grasps[rows])
         for name in TrialResults.ARRAY_FIELDS:
             if name != "invalid_reason":
                 getattr(results, name)[rows] = getattr(batch, name)

@@ -20,7 +20,9 @@ so the benchmark's own rows, submitted in their stored order, get exactly their 
 Arguments of ``make("gsr", ...)``: ``benchmark``, ``mesh_root``, ``n_perturbations`` and
 ``perturbation_seed`` (default: the benchmark's), ``workers``, ``backend``
 (``"local"``/``"ray"``), ``address``, ``n_resamples`` and ``seed`` (confidence intervals),
-``progress``.
+``progress``, ``simulator`` (a :class:`~dg16m_env.simulator.Simulator` or its name; default C
+MuJoCo, the engine of the shipped labels). A result computed on another engine names it in its
+parameters (``"simulator"``), so it is never mistaken for a C MuJoCo score.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ import numpy as np
 from dataset_gen.parallel import Backend
 from dg16m_env.gsr import GraspJob, evaluate_objects
 from dg16m_env.labels import LEVELS, concatenate_labels
+from dg16m_env.simulator import Simulator, SimulatorError, check_simulator
 from dg16m_env.submission import Submission
 from dg16m_env.trial import PHASES, TrialStatus
 
@@ -62,6 +65,7 @@ class GraspSuccessRate(SubmissionEvaluator):
         n_resamples: int = 2000,
         seed: int = 0,
         progress: bool = False,
+        simulator: Simulator | str | None = None,
     ) -> None:
         super().__init__(
             benchmark=benchmark,
@@ -73,6 +77,11 @@ class GraspSuccessRate(SubmissionEvaluator):
             seed=seed,
             progress=progress,
         )
+        try:
+            self.simulator = check_simulator(simulator)
+            self.simulator.check_available()
+        except SimulatorError as exc:
+            raise EvaluatorError(f"gsr: {exc}") from None
         self.params = self.ref.benchmark.parameters()
         spec = self.params.perturbation
         changes: dict[str, Any] = {}
@@ -103,6 +112,7 @@ class GraspSuccessRate(SubmissionEvaluator):
             backend=self.backend,
             address=self.address,
             progress=self.progress,
+            simulator=self.simulator,
         )
         # Grasps of objects that could not be simulated keep p = 0 and count as not run.
         p = {level: np.zeros(len(poses)) for level in LEVELS}
@@ -137,6 +147,7 @@ class GraspSuccessRate(SubmissionEvaluator):
                 "perturbation": self.spec.to_dict(),
                 "scene": self.params.scene.to_dict(),
                 "protocol": self.params.protocol.to_dict(),
+                **({} if self.simulator.is_default else {"simulator": self.simulator.describe()}),
             },
             seeds={"perturbation": self.spec.seed, "resample": self.seed},
             headline="gsr",

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from dataset_gen.parallel import Backend, check_backend
+from dg16m_env.simulator import Simulator
 from dg16m_env.submission import Submission, read_submission
 
 from .context import BenchmarkRef, load_benchmark_ref
@@ -119,6 +120,7 @@ def submission_evaluators(
     seed: int = 0,
     n_perturbations: int | None = None,
     progress: bool = False,
+    simulator: Simulator | None = None,
 ) -> dict[str, Evaluator]:
     """The named evaluators of submission files, built with one set of run options (what
     ``dg16m evaluate`` and the leaderboard's workers score with).
@@ -129,6 +131,7 @@ def submission_evaluators(
         workers, backend, address: the parallel backend.
         seed: seed of the confidence intervals.
         n_perturbations: ``gsr``'s perturbed trials per grasp (default: the benchmark's).
+        simulator: ``gsr``'s physics engine (default C MuJoCo).
         progress: progress bars.
 
     Raises:
@@ -152,5 +155,7 @@ def submission_evaluators(
         }
         if name == "gsr" and n_perturbations is not None:
             kwargs["n_perturbations"] = n_perturbations
+        if name == "gsr" and simulator is not None:
+            kwargs["simulator"] = simulator
         out[name] = make(name, **kwargs)
     return out
