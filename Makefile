@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 DEMO   := runs/demo
 
-.PHONY: setup demo test test-all lint format clean
+.PHONY: setup demo test test-all test-warp lint format clean
 
 setup: $(STAMP)
 
@@ -40,6 +40,12 @@ test: $(STAMP)
 test-all: $(STAMP)
 	bash scripts/install_system_deps.sh chromium chromium-driver  # the page tests
 	$(BIN)/python -m pytest -q -m ""
+
+# Optional: MuJoCo Warp (`--simulator warp`). Installs the extra into .venv, then runs its tests
+# on Warp's CPU device (the first run compiles Warp's kernels: 1-2 minutes, then cached).
+test-warp: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[warp]'
+	$(BIN)/python -m pytest -q -m warp tests/test_warp.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -171,12 +171,7 @@ def compare_files(args: Arguments) -> int:
             for a in np.unique(cpu_bench.source)
         },
     }
-    report(result)
-    if args.json:
-        write_json_atomic(Path(args.json), result)
-        print(f"wrote {args.json}")
-    overall = result["overall"]["full"]["labels_identical"]
-    return 0 if overall is not None and overall >= TARGET else 1
+    return finish(result, args)
 
 
 def run(args: Arguments) -> int:
@@ -281,6 +276,11 @@ def run(args: Arguments) -> int:
             "labels_changed": int(np.sum(again.label() != warp.label())),
             "trials": trials,
         }
+    return finish(result, args)
+
+
+def finish(result: dict[str, Any], args: Arguments) -> int:
+    """Print the report, write the JSON; exit status 0 when the target is met."""
     report(result)
     if args.json:
         write_json_atomic(Path(args.json), result)

@@ -24,6 +24,7 @@ import subprocess
 import sys
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
+from importlib import metadata
 from typing import Any, Literal
 
 from dataset_gen.checks import check_integer, known_fields
@@ -128,10 +129,13 @@ class Simulator:
 
         out = self.to_dict()
         out["mujoco"] = mujoco.__version__
-        if self.name == "warp":
-            mjw, wp = import_warp()
-            out["mujoco_warp"] = getattr(mjw, "__version__", "unknown")
-            out["warp"] = wp.config.version
+        if self.name == "warp":  # read from the installed metadata: importing Warp here could
+            # initialise CUDA in a process that later forks workers
+            for key, dist in (("mujoco_warp", "mujoco-warp"), ("warp", "warp-lang")):
+                try:
+                    out[key] = metadata.version(dist)
+                except metadata.PackageNotFoundError:
+                    out[key] = "not installed"
         return out
 
     def check_available(self) -> None:

@@ -41,6 +41,10 @@ step-by-step replay restart it at the same steps, so they reproduce ``run_trials
 On one machine results are bit-for-bit reproducible (any batch size, worker count or backend); on
 another CPU MuJoCo's floating-point results can differ in the last bits, and after contact chaos
 by more (see BENCHMARKS.md).
+
+``run_trials(..., simulator="warp")`` steps the same trials on MuJoCo Warp (optional extra; one
+object's trials as Warp worlds on a GPU, :mod:`dg16m_env.warp_trials`): the same validity check,
+schedule, segments, :func:`step_measures`, :func:`out_steps` and :func:`judge`, in float32.
 """
 
 from __future__ import annotations

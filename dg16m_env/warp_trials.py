@@ -25,8 +25,8 @@ moves to MuJoCo Warp (optional extra ``warp``; :class:`~dg16m_env.simulator.Simu
   ignored (re-allocating would cost more than it saves).
 * **Overflow**: a world whose contacts or constraint rows overflow the allocation (``nconmax``,
   ``njmax``), or whose broadphase, narrowphase, EPA or contact-sensor buffers overflow, has
-  wrong physics from that step on: its states for the segment are set to NaN, so the judge calls
-  the trial ``UNSTABLE`` (a failure, counted, never dropped). :attr:`WarpRunner.overflowed` counts
+  wrong physics: every step of that phase is marked non-finite, so the judge calls the trial
+  ``UNSTABLE`` in that phase (a failure, counted, never dropped). :attr:`WarpRunner.overflowed` counts
   them. Hitting the solver's iteration limit is not an overflow (C MuJoCo stops there too).
 * On CUDA each step (wrench, ``mujoco_warp.step``, measures) is captured once per ``Data`` as a
   CUDA graph and replayed (:attr:`Simulator.graph`).

@@ -1,5 +1,5 @@
-"""Test helpers shared by the trial tests: a plank with one exact convex part and Panda hand
-poses that squeeze it (importable from tests/ as ``planks``)."""
+"""Test helpers shared by the trial tests: a plank with one exact convex part, Panda hand poses
+that squeeze it, and the dual grasps the tests judge (importable from tests/ as ``planks``)."""
 
 from __future__ import annotations
 
@@ -34,3 +34,34 @@ def hand(x: float, closing: str, approach: tuple[float, float, float]) -> np.nda
 def dual(*poses: np.ndarray) -> np.ndarray:
     """(2, 4, 4) the two hands' poses of a dual grasp."""
     return np.stack(poses)
+
+
+def finger_inside(pose: np.ndarray) -> np.ndarray:
+    """``pose`` moved 0.04 m along its closing axis: the open finger 1 (inner face at -0.04 m,
+    0.02 m thick) then lies inside the 0.04 m thick plank."""
+    moved = pose.copy()
+    moved[:3, 3] += 0.04 * moved[:3, 0]
+    return moved
+
+
+SHORT_PLANK = (0.6, 4.0, "short_plank")  # length (m), mass (kg), id
+LONG_PLANK = (1.0, 6.0, "long_plank")
+
+# Both ends squeezed, each hand 0.05 m from an end, closing across the 0.04 m thickness.
+HOLD_FROM_ABOVE = dual(hand(-0.25, "y", DOWN), hand(0.25, "y", DOWN))
+HOLD_FROM_SIDE = dual(hand(-0.25, "z", SIDE), hand(0.25, "z", SIDE))
+
+# Long heavy plank, both hands near one end, 0.1 m apart (0.45 and 0.35 m from the centre):
+# gravity's torque about the grasp is 6 kg * 10 m/s^2 * 0.4 m = 24 N m.
+#
+# Closing vertically (pads on the top and bottom faces, approach from the side), as first asked:
+# the couple has to come from the two hands pushing the plank up and down, i.e. from driving the
+# fingers of one hand backwards along their closing axis against the 70 N squeeze (measured: the
+# fingers of the inner hand are pushed open and the plank pivots about the outer hand, 8.4 deg
+# by the end of the gravity phase, 11.3-12.6 deg in force+x for hands 0.43-0.47 m out, then it
+# jams at ~14.4 deg). It does fail, but only by a few degrees past max_rotation_deg (10).
+FAIL_VERTICAL = dual(hand(0.45, "z", SIDE), hand(0.35, "z", SIDE))
+# Closing horizontally (pads on the side faces, approach from above) the same torque acts about
+# the closing axis: only pad friction (at most ~0.4 * 140 N per hand, 0.1 m apart: ~6 N m) and
+# torsional friction resist it, so this cannot hold at all (measured: ~44 deg in the gravity phase).
+FAIL_HORIZONTAL = dual(hand(0.45, "y", DOWN), hand(0.35, "y", DOWN))

@@ -16,7 +16,18 @@ import trimesh
 pytest.importorskip("mujoco")
 
 import mujoco
-from planks import DOWN, SIDE, dual, hand, plank
+from planks import (
+    DOWN,
+    FAIL_HORIZONTAL,
+    FAIL_VERTICAL,
+    HOLD_FROM_ABOVE,
+    HOLD_FROM_SIDE,
+    SIDE,
+    dual,
+    finger_inside,
+    hand,
+    plank,
+)
 
 from dataset_gen.errors import Dg16mError
 from dataset_gen.gripper import PANDA
@@ -40,38 +51,6 @@ from dg16m_env.trial import (
 # --------------------------------------------------------------------------------------------
 # Objects and grasps
 # --------------------------------------------------------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def short_scene() -> Scene:
-    """0.6 m, 4 kg plank."""
-    return compile_scene(plank(0.6, 4.0, "short_plank"))
-
-
-@pytest.fixture(scope="module")
-def long_scene() -> Scene:
-    """1.0 m, 6 kg plank."""
-    return compile_scene(plank(1.0, 6.0, "long_plank"))
-
-
-# Both ends squeezed, each hand 0.05 m from an end, closing across the 0.04 m thickness.
-HOLD_FROM_ABOVE = dual(hand(-0.25, "y", DOWN), hand(0.25, "y", DOWN))
-HOLD_FROM_SIDE = dual(hand(-0.25, "z", SIDE), hand(0.25, "z", SIDE))
-
-# Long heavy plank, both hands near one end, 0.1 m apart (0.45 and 0.35 m from the centre):
-# gravity's torque about the grasp is 6 kg * 10 m/s^2 * 0.4 m = 24 N m.
-#
-# Closing vertically (pads on the top and bottom faces, approach from the side), as first asked:
-# the couple has to come from the two hands pushing the plank up and down, i.e. from driving the
-# fingers of one hand backwards along their closing axis against the 70 N squeeze (measured: the
-# fingers of the inner hand are pushed open and the plank pivots about the outer hand, 8.4 deg
-# by the end of the gravity phase, 11.3-12.6 deg in force+x for hands 0.43-0.47 m out, then it
-# jams at ~14.4 deg). It does fail, but only by a few degrees past max_rotation_deg (10).
-FAIL_VERTICAL = dual(hand(0.45, "z", SIDE), hand(0.35, "z", SIDE))
-# Closing horizontally (pads on the side faces, approach from above) the same torque acts about
-# the closing axis: only pad friction (at most ~0.4 * 140 N per hand, 0.1 m apart: ~6 N m) and
-# torsional friction resist it, so this cannot hold at all (measured: ~44 deg in the gravity phase).
-FAIL_HORIZONTAL = dual(hand(0.45, "y", DOWN), hand(0.35, "y", DOWN))
 
 
 def fields_equal(a: TrialResults, b: TrialResults) -> None:
@@ -147,20 +126,12 @@ def test_a_failure_is_judged_in_a_later_phase_when_the_earlier_ones_are_held(
 # --------------------------------------------------------------------------------------------
 
 
-def _finger_inside(pose: np.ndarray) -> np.ndarray:
-    """``pose`` moved 0.04 m along its closing axis: the open finger 1 (inner face at -0.04 m,
-    0.02 m thick) then lies inside the 0.04 m thick plank."""
-    moved = pose.copy()
-    moved[:3, 3] += 0.04 * moved[:3, 0]
-    return moved
-
-
 def test_open_fingers_in_the_object_make_the_trial_invalid(short_scene: Scene) -> None:
     good0, good1 = HOLD_FROM_ABOVE
     grasps = np.stack(
         [
-            dual(_finger_inside(good0), good1),
-            dual(good0, _finger_inside(good1)),
+            dual(finger_inside(good0), good1),
+            dual(good0, finger_inside(good1)),
             HOLD_FROM_ABOVE,  # a valid trial in the same call still runs
         ]
     )
@@ -750,7 +721,7 @@ def test_scene_parameters_and_protocol_from_stored_dicts() -> None:
 def test_results_print_short_and_count_invalid_reasons(short_scene: Scene) -> None:
     good0, good1 = HOLD_FROM_ABOVE
     grasps = np.stack(
-        [dual(_finger_inside(good0), good1), dual(good0, good0), dual(good0, _finger_inside(good1))]
+        [dual(finger_inside(good0), good1), dual(good0, good0), dual(good0, finger_inside(good1))]
     )
     results = run_trials(short_scene, grasps)
     assert results.invalid_reasons() == {
@@ -767,7 +738,7 @@ def test_open_hand_penetration_names_the_part(short_scene: Scene) -> None:
 
     good0, good1 = HOLD_FROM_ABOVE
     depth = open_hand_penetration(
-        short_scene, np.stack([dual(_finger_inside(good0), good1), HOLD_FROM_ABOVE])
+        short_scene, np.stack([dual(finger_inside(good0), good1), HOLD_FROM_ABOVE])
     )
     assert depth.shape == (2, 2, len(HAND_PARTS))
     inside = depth > TrialProtocol().invalid_penetration

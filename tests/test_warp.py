@@ -15,7 +15,15 @@ import os
 
 import numpy as np
 import pytest
-from planks import DOWN, SIDE, dual, hand, plank
+from planks import (
+    FAIL_HORIZONTAL,
+    HOLD_FROM_ABOVE,
+    HOLD_FROM_SIDE,
+    SHORT_PLANK,
+    dual,
+    finger_inside,
+    plank,
+)
 
 from dataset_gen.cli import main
 from dg16m_env import simulator as simulator_module
@@ -99,9 +107,9 @@ def test_a_missing_extra_is_reported_with_the_install_command(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     monkeypatch.setattr(simulator_module, "warp_installed", lambda: False)
-    scene = compile_scene(plank(0.6, 4.0, "short_plank"))
+    scene = compile_scene(plank(*SHORT_PLANK))
     with pytest.raises(SimulatorError, match=r"install them with pip install 'dg16m\[warp\]'"):
-        run_trials(scene, HOLD[None], simulator="warp")
+        run_trials(scene, HOLD_FROM_ABOVE[None], simulator="warp")
 
 
 def test_commands_refuse_warp_without_the_extra_before_any_work(
@@ -116,13 +124,31 @@ def test_commands_refuse_warp_without_the_extra_before_any_work(
     assert "expected --simulator warp" in capsys.readouterr().err
 
 
+def test_a_result_computed_on_warp_says_so_and_the_reference_stays_silent() -> None:
+    from dg16m_env.evaluators.result import EvaluationResult
+
+    def result(parameters: dict) -> str:
+        return EvaluationResult(
+            evaluator="gsr",
+            evaluator_version="1",
+            package_version="0",
+            benchmark={},
+            subject={},
+            parameters=parameters,
+            seeds={},
+            headline="gsr",
+            metrics={"gsr": 0.5},
+        ).format()
+
+    warp = Simulator(name="warp", device="cuda:1")
+    assert "trials on MuJoCo Warp, device cuda:1" in result({"simulator": warp.to_dict()})
+    assert "Warp" not in result({})
+
+
 # --------------------------------------------------------------------------------------------
 # Trials on Warp's CPU device against C MuJoCo (extra needed)
 # --------------------------------------------------------------------------------------------
 
-HOLD = dual(hand(-0.25, "y", DOWN), hand(0.25, "y", DOWN))
-HOLD_SIDE = dual(hand(-0.25, "z", SIDE), hand(0.25, "z", SIDE))
-FAIL_HORIZONTAL = dual(hand(0.45, "y", DOWN), hand(0.35, "y", DOWN))  # falls under gravity
 WARP_DEVICE = os.environ.get("DG16M_WARP_DEVICE", "cpu")
 """Where the comparisons run: Warp's CPU device, or a GPU (``DG16M_WARP_DEVICE=cuda:0``, what
 ``scripts/gpu_check.sh`` sets)."""
@@ -130,26 +156,16 @@ WARP_CPU = Simulator(name="warp", device=WARP_DEVICE, worlds=8)
 
 
 @pytest.fixture(scope="module")
-def short_scene() -> Scene:
-    return compile_scene(plank(0.6, 4.0, "short_plank"))
-
-
-@pytest.fixture(scope="module")
-def long_scene() -> Scene:
-    return compile_scene(plank(1.0, 6.0, "long_plank"))
-
-
-def _finger_inside(pose: np.ndarray) -> np.ndarray:
-    moved = pose.copy()
-    moved[:3, 3] += 0.04 * moved[:3, 0]
-    return moved
-
-
-@pytest.fixture(scope="module")
 def mixed(short_scene: Scene, long_scene: Scene) -> dict[str, tuple[np.ndarray, TrialResults]]:
     """Holds, an invalid pair, and failures, on C MuJoCo (the reference)."""
-    short = np.stack([HOLD, HOLD_SIDE, dual(_finger_inside(HOLD[0]), HOLD[1])])
-    long = np.stack([FAIL_HORIZONTAL, HOLD, FAIL_HORIZONTAL])
+    short = np.stack(
+        [
+            HOLD_FROM_ABOVE,
+            HOLD_FROM_SIDE,
+            dual(finger_inside(HOLD_FROM_ABOVE[0]), HOLD_FROM_ABOVE[1]),
+        ]
+    )
+    long = np.stack([FAIL_HORIZONTAL, HOLD_FROM_ABOVE, FAIL_HORIZONTAL])
     return {
         "short": (short, run_trials(short_scene, short)),
         "long": (long, run_trials(long_scene, long)),
@@ -190,7 +206,7 @@ def test_warp_verdicts_match_c_mujoco(
 @pytest.mark.warp
 @requires_warp
 def test_warp_is_repeatable_and_early_exit_keeps_the_verdicts(long_scene: Scene) -> None:
-    grasps = np.stack([FAIL_HORIZONTAL, HOLD, FAIL_HORIZONTAL])
+    grasps = np.stack([FAIL_HORIZONTAL, HOLD_FROM_ABOVE, FAIL_HORIZONTAL])
     first = run_trials(long_scene, grasps, simulator=WARP_CPU)
     again = run_trials(long_scene, grasps, simulator=WARP_CPU)
     for name in TrialResults.ARRAY_FIELDS:
@@ -204,7 +220,7 @@ def test_warp_is_repeatable_and_early_exit_keeps_the_verdicts(long_scene: Scene)
 @requires_warp
 def test_a_world_that_overflows_its_contacts_is_unstable_not_dropped(short_scene: Scene) -> None:
     tiny = Simulator(name="warp", device=WARP_DEVICE, worlds=8, nconmax=1)
-    results = run_trials(short_scene, np.stack([HOLD, HOLD_SIDE]), simulator=tiny)
+    results = run_trials(short_scene, np.stack([HOLD_FROM_ABOVE, HOLD_FROM_SIDE]), simulator=tiny)
     assert results.status.tolist() == [TrialStatus.UNSTABLE] * 2
     assert results.summary()["unstable"] == 2
 
@@ -218,7 +234,7 @@ def test_device_measures_match_measure_steps_on_the_same_states(short_scene: Sce
     from dg16m_env.warp_trials import MEASURE_COLUMN, WarpRunner
 
     protocol = TrialProtocol()
-    grasps = np.stack([HOLD, HOLD_SIDE])
+    grasps = np.stack([HOLD_FROM_ABOVE, HOLD_FROM_SIDE])
     states, sensors, plan = simulate(short_scene, grasps, protocol)
     close = plan.close_end
     steps = np.arange(close, plan.nstep, 40)

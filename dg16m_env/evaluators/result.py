@@ -109,6 +109,9 @@ class EvaluationResult:
             f"{self.evaluator} v{self.evaluator_version} (dg16m {self.package_version})"
             + (f", benchmark {self.benchmark['sha256'][:12]}" if self.benchmark else "")
         ]
+        engine = (self.parameters or {}).get("simulator")
+        if isinstance(engine, Mapping) and engine.get("name", "mujoco") != "mujoco":
+            lines.append(f"  trials on MuJoCo Warp, device {engine.get('device', '?')}")
         for name, value in self.metrics.items():
             lines.append(f"  {name:<22} {format_rate(value)}")
         if self.failures:
