@@ -184,9 +184,17 @@ class WarpRunner:
             )
             if sim.graph and self.device.is_cuda:
                 self._step(worlds)  # compile every kernel before the capture
-                with wp.ScopedCapture() as capture:
-                    self._step(worlds)
-                worlds.graph = capture.graph
+                try:
+                    with wp.ScopedCapture() as capture:
+                        self._step(worlds)
+                    worlds.graph = capture.graph
+                except RuntimeError as exc:  # Warp's capture errors; the steps still run
+                    log.warning(
+                        "%s: CUDA graph capture failed (%s); stepping without graphs "
+                        "(Simulator(graph=False) skips the attempt)",
+                        self.scene.object_id,
+                        exc,
+                    )
         return worlds
 
     def _step(self, worlds: _Worlds) -> None:
