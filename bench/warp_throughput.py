@@ -50,6 +50,7 @@ class Arguments:
     benchmark: str = str(EMBEDDED_BENCHMARK)
     mesh_root: str | None = None
     objects: int = 5
+    trials: int | None = None
     worlds: list[int] = field(default_factory=lambda: [1024, 4096, 8192])
     device: str = "cuda:0"
     cpu_trials: int = 270
@@ -63,6 +64,9 @@ def parse(argv: list[str] | None = None) -> Arguments:
     p.add_argument("--benchmark", default=d.benchmark)
     p.add_argument("--mesh-root", default=None)
     p.add_argument("--objects", type=int, default=d.objects, help="first N objects of the file")
+    p.add_argument(
+        "--trials", type=int, default=None, help="at most this many of each object's trials"
+    )
     p.add_argument("--worlds", type=int, nargs="+", default=d.worlds, help="world counts")
     p.add_argument("--device", default=d.device, help="Warp device: cuda:0, cpu, ...")
     p.add_argument("--cpu-trials", type=int, default=d.cpu_trials, help="C MuJoCo reference")
@@ -100,7 +104,7 @@ def run(args: Arguments) -> int:
         scene = compile_scene(item.load(args.mesh_root), params=params.scene, parts=item.parts)
         spec = bench.labels.spec
         poses = trial_poses(scene, bench.poses[mine], bench.labels.seeds[mine], spec)
-        poses = poses.reshape(-1, 2, 4, 4)
+        poses = poses.reshape(-1, 2, 4, 4)[: args.trials]
         entry: dict[str, Any] = {"object": item.object_id, "trials": len(poses), "warp": {}}
         cpu = poses[: args.cpu_trials]
         entry["cpu_trials_per_s"] = len(cpu) / timed(scene, cpu, params.protocol, None)
@@ -124,13 +128,18 @@ def run(args: Arguments) -> int:
             f"batch ({len(poses)}) {entry['build_batch_trials_per_s']:.0f}; {rates} trials/s",
             flush=True,
         )
-    summary = summarise(rows, args)
-    print_summary(summary)
+        if args.json:  # after every object: a run stopped at a time limit keeps what it measured
+            write_json_atomic(
+                Path(args.json),
+                {
+                    "arguments": asdict(args),
+                    "machine": machine(),
+                    "objects": rows,
+                    **summarise(rows, args),
+                },
+            )
+    print_summary(summarise(rows, args))
     if args.json:
-        write_json_atomic(
-            Path(args.json),
-            {"arguments": asdict(args), "machine": machine(), "objects": rows, **summary},
-        )
         print(f"wrote {args.json}")
     return 0
 

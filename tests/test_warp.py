@@ -153,7 +153,7 @@ def test_a_result_computed_on_warp_says_so_and_the_reference_stays_silent() -> N
 WARP_DEVICE = os.environ.get("DG16M_WARP_DEVICE", "cpu")
 """Where the comparisons run: Warp's CPU device, or a GPU (``DG16M_WARP_DEVICE=cuda:0``, what
 ``scripts/gpu_check.sh`` sets)."""
-WARP_CPU = Simulator(name="warp", device=WARP_DEVICE, worlds=8)
+WARP_SIM = Simulator(name="warp", device=WARP_DEVICE, worlds=8)
 
 
 @pytest.fixture(scope="module")
@@ -181,7 +181,7 @@ def test_warp_verdicts_match_c_mujoco(
 ) -> None:
     scene = short_scene if which == "short" else long_scene
     grasps, reference = mixed[which]
-    results = run_trials(scene, grasps, simulator=WARP_CPU)
+    results = run_trials(scene, grasps, simulator=WARP_SIM)
     assert results.status.tolist() == reference.status.tolist()
     assert results.failing_phase.tolist() == reference.failing_phase.tolist()
     assert results.invalid_reason.tolist() == reference.invalid_reason.tolist()
@@ -210,13 +210,13 @@ def test_warp_is_repeatable_and_early_exit_keeps_the_verdicts(long_scene: Scene)
     """Deterministic mode gives the same bytes twice (on a GPU too); the default mode and a
     run without early exit give the same verdicts."""
     grasps = np.stack([FAIL_HORIZONTAL, HOLD_FROM_ABOVE, FAIL_HORIZONTAL])
-    deterministic = replace(WARP_CPU, deterministic=True)
+    deterministic = replace(WARP_SIM, deterministic=True)
     first = run_trials(long_scene, grasps, simulator=deterministic)
     again = run_trials(long_scene, grasps, simulator=deterministic)
     for name in TrialResults.ARRAY_FIELDS:
         assert np.array_equal(getattr(first, name), getattr(again, name), equal_nan=True), name
     for early_exit in (True, False):
-        other = run_trials(long_scene, grasps, simulator=WARP_CPU, early_exit=early_exit)
+        other = run_trials(long_scene, grasps, simulator=WARP_SIM, early_exit=early_exit)
         assert other.status.tolist() == first.status.tolist()
         assert other.failing_phase.tolist() == first.failing_phase.tolist()
 
@@ -249,7 +249,7 @@ def test_device_measures_match_measure_steps_on_the_same_states(short_scene: Sce
         short_scene, states[:, steps], sensors[:, steps], 0, protocol, anchors, reference
     )
     # One world per (trial, step): its state and sensors set directly, measured once.
-    runner = WarpRunner(short_scene, plan, WARP_CPU)
+    runner = WarpRunner(short_scene, plan, WARP_SIM)
     trial = np.repeat(np.arange(2), steps.size)
     world_states = states[:, steps].reshape(-1, states.shape[-1])
     world_sensors = sensors[:, steps].reshape(-1, sensors.shape[-1])
@@ -324,7 +324,7 @@ def test_a_warp_build_names_its_engine_and_cannot_resume_on_another(tmp_path) ->
         perturbation=PerturbationSpec(n_perturbations=1),
     )
     sources = procedural_benchmark_sources(1)
-    path = build_benchmark(sources, tmp_path, small, progress=False, simulator=WARP_CPU)
+    path = build_benchmark(sources, tmp_path, small, progress=False, simulator=WARP_SIM)
     bench = read_benchmark(path)
     engine = bench.metadata["simulator"]
     assert engine["name"] == "warp"
