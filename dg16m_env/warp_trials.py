@@ -299,7 +299,8 @@ class WarpRunner:
         n = len(grasps)
         controls = trial_control_vectors(scene, grasps)
         anchors = grasp_centres(scene, grasps)
-        state = np.repeat(initial_state(scene)[None], n, axis=0)
+        state0 = initial_state(scene)
+        state = np.repeat(state0[None], n, axis=0)
         reference = None
         measures = StepMeasures.empty(n, plan.nstep)
         active = np.arange(n)
@@ -312,9 +313,13 @@ class WarpRunner:
                 worlds = self._worlds(active, controls, anchors)
                 world_of = np.arange(active.size)
             rows = worlds.trial
+            start = state[rows]
+            idle = np.ones(worlds.n, dtype=bool)
+            idle[world_of] = False
+            start[idle] = state0  # decided trials restart from rest, never from a broken state
             seg_all, last = self._segment(
                 worlds,
-                state[rows],
+                start,
                 None if reference is None else reference[rows],
                 anchors[rows],
                 seg,
