@@ -19,6 +19,7 @@ evaluator's details), so a number always says which engine produced it.
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import subprocess
 import sys
@@ -154,20 +155,30 @@ class Simulator:
             import_warp()  # raises with the install command
         if self.warp_device == "cpu":
             return
-        probe = subprocess.run(
-            [sys.executable, "-c", _DEVICE_PROBE, self.warp_device],
-            capture_output=True,
-            text=True,
-            timeout=120,
-            check=False,
-        )
-        if probe.returncode != 0:
-            lines = (probe.stderr or probe.stdout).strip().splitlines()
+        problem = _device_problem(self.warp_device)
+        if problem is not None:
             raise SimulatorError(
                 f"device: expected a Warp device that exists here, found {self.warp_device!r} "
-                f"({lines[-1] if lines else 'no message'}); use device 'cpu' to run MuJoCo Warp "
-                "on the CPU for checking"
+                f"({problem}); use device 'cpu' to run MuJoCo Warp on the CPU for checking"
             )
+
+
+@functools.cache
+def _device_problem(device: str) -> str | None:
+    """Why Warp cannot use ``device`` (``None``: it can), probed once per process and device in
+    a child process (:data:`_DEVICE_PROBE`): a build checks before its objects, its evaluator
+    before scoring, and the answer does not change in between."""
+    probe = subprocess.run(
+        [sys.executable, "-c", _DEVICE_PROBE, device],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    if probe.returncode == 0:
+        return None
+    lines = (probe.stderr or probe.stdout).strip().splitlines()
+    return lines[-1] if lines else "no message"
 
 
 _DEVICE_PROBE = """
@@ -179,7 +190,7 @@ try:
 except Exception as exc:  # any failure of the probe is the message
     sys.exit(f"{type(exc).__name__}: {exc} ({wp.get_cuda_device_count()} CUDA device(s))")
 """
-"""Run in a child process by :meth:`Simulator.check_available`."""
+"""Run in a child process by :func:`_device_problem`."""
 
 
 def warp_installed() -> bool:

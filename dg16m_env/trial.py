@@ -594,6 +594,18 @@ def rotation_deg(quat: np.ndarray, ref: np.ndarray) -> np.ndarray:
 _IDENTITY_QUAT = np.array([1.0, 0.0, 0.0, 0.0])
 
 
+def body_points(
+    anchors: np.ndarray, ref_pos: np.ndarray | None = None, ref_quat: np.ndarray | None = None
+) -> np.ndarray:
+    """(N, K, 3) the material points whose slip is measured, in the object frame: the anchors
+    (N, K, 3; world, where the points sat at the reference pose ``ref_pos`` (N, 3), ``ref_quat``
+    (N, 4)) carried into the object frame; the anchors themselves when the reference is the
+    initial pose (``None``: the origin, identity)."""
+    if ref_pos is None or ref_quat is None:
+        return anchors
+    return np.einsum("nji,nkj->nki", quat_to_matrix(ref_quat), anchors - ref_pos[:, None])
+
+
 def motion_from(
     pos: np.ndarray,
     quat: np.ndarray,
@@ -617,13 +629,11 @@ def motion_from(
     """
     rot = quat_to_matrix(quat)  # (N, T, 3, 3)
     if ref_pos is None or ref_quat is None:
-        body_points = anchors
         rotation = rotation_deg(quat, _IDENTITY_QUAT)
     else:
-        ref_rot = quat_to_matrix(ref_quat)
-        body_points = np.einsum("nji,nkj->nki", ref_rot, anchors - ref_pos[:, None])
         rotation = rotation_deg(quat, ref_quat[:, None])
-    points = np.einsum("ntij,nkj->ntki", rot, body_points) + pos[:, :, None]
+    points = np.einsum("ntij,nkj->ntki", rot, body_points(anchors, ref_pos, ref_quat))
+    points = points + pos[:, :, None]
     moved = points - anchors[:, None]
     return np.linalg.norm(moved, axis=-1).max(axis=-1), rotation
 

@@ -46,7 +46,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from dg16m_env.scene import Scene, quat_to_matrix
+from dg16m_env.scene import Scene
 from dg16m_env.simulator import Simulator, SimulatorError, import_warp
 from dg16m_env.trial import (
     CONTROL_SPEC,
@@ -55,6 +55,7 @@ from dg16m_env.trial import (
     StepMeasures,
     TrialProtocol,
     TrialResults,
+    body_points,
     grasp_centres,
     initial_state,
     judge,
@@ -247,12 +248,11 @@ class WarpRunner:
         wp, mjw = self.wp, self.mjw
         nstep = seg.stop - seg.start
         if reference is None:
-            body_points = anchors
+            points = body_points(anchors)
             ref_quat = np.tile(_IDENTITY_WXYZ, (len(start), 1))
         else:
             ref_pos, ref_quat, _ = object_states(self.scene, reference)
-            ref_rot = quat_to_matrix(ref_quat)
-            body_points = np.einsum("nji,nkj->nki", ref_rot, anchors - ref_pos[:, None])
+            points = body_points(anchors, ref_pos, ref_quat)
         with wp.ScopedDevice(self.device):
             d = worlds.data
             mjw.set_state(
@@ -260,7 +260,7 @@ class WarpRunner:
             )
             d.qacc_warmstart.zero_()  # each segment starts the solver cold, as on the CPU
             d.overflow.zero_()
-            worlds.body_points.assign(body_points.astype(np.float32))
+            worlds.body_points.assign(points.astype(np.float32))
             worlds.reference.assign(ref_quat[:, [1, 2, 3, 0]].astype(np.float32))  # x y z w
             worlds.counter.assign(np.array([0, seg.start], dtype=np.int32))
             for _ in range(nstep):

@@ -17,6 +17,7 @@ import pytest
 pytest.importorskip("mujoco")
 
 from planks import DOWN, THICKNESS, dual, hand, plank
+from shipped_meshes import MESHES
 
 from dataset_gen.cli import main as cli_main
 from dataset_gen.decomposition import DecompositionParameters, object_parts
@@ -50,7 +51,6 @@ from dg16m_env.reseat import DEFAULT_RESEAT_MAX, reseat_poses
 from dg16m_env.scene import compile_scene
 from dg16m_env.trial import InvalidReason, TrialProtocol, check_initial_poses, grasp_centres
 
-MESHES = Path(__file__).parent / "data" / "meshes"
 TINY = BenchmarkParameters(
     n_grasps=40,
     n_passing=4,

@@ -11,8 +11,10 @@ import trimesh
 pytest.importorskip("mujoco")
 pytest.importorskip("coacd")
 
+from shipped_meshes import FAST, MESHES
+
 from dataset_gen.clearance import OpenHandClearance, collision_parts
-from dataset_gen.decomposition import DecompositionParameters, convex_decomposition
+from dataset_gen.decomposition import convex_decomposition
 from dataset_gen.gripper import get_gripper
 from dataset_gen.objects import ConvexPart, make_object
 from dataset_gen.parameters import PAPER, PROTOCOL
@@ -20,16 +22,6 @@ from dataset_gen.sampling import sample_antipodal_grasps
 from dataset_gen.sources import ObjectSource
 from dg16m_env.scene import compile_scene
 from dg16m_env.trial import InvalidReason, TrialProtocol, check_initial_poses, open_hand_penetration
-
-MESHES = Path(__file__).parent / "data" / "meshes"
-FAST = DecompositionParameters(
-    threshold=0.05,
-    preprocess_resolution=20,
-    resolution=500,
-    mcts_nodes=10,
-    mcts_iterations=20,
-    mcts_max_depth=2,
-)
 
 
 def _box_part(center: tuple[float, float, float], half: tuple[float, float, float]) -> ConvexPart:

@@ -15,6 +15,8 @@ import trimesh
 
 pytest.importorskip("coacd")
 
+from shipped_meshes import FAST, MESHES
+
 from dataset_gen import decomposition as dec
 from dataset_gen.cli import main
 from dataset_gen.decomposition import (
@@ -31,16 +33,6 @@ from dataset_gen.decomposition import (
 from dataset_gen.errors import MeshError
 from dataset_gen.objects import ConvexPart, make_object, parts_to_mesh
 from dataset_gen.procedural import make_procedural_object
-
-# Coarse settings: the L-shape decomposes in well under a second.
-FAST = DecompositionParameters(
-    threshold=0.05,
-    preprocess_resolution=20,
-    resolution=500,
-    mcts_nodes=10,
-    mcts_iterations=20,
-    mcts_max_depth=2,
-)
 
 
 @pytest.fixture(scope="module")
@@ -305,7 +297,6 @@ def test_object_parts_decomposes_a_mesh_without_parts(
 # Preprocessing choice, faithfulness of the hulls, the deviation report, the CLI
 # --------------------------------------------------------------------------------------------
 
-MESHES = Path(__file__).parent / "data" / "meshes"
 
 DEVIATION_BOUND_M = 1e-3
 """What the default settings must achieve on box-built solids: every hull point within 1 mm."""

@@ -28,7 +28,7 @@ from planks import (
 
 from dataset_gen.cli import main
 from dg16m_env import simulator as simulator_module
-from dg16m_env.scene import Scene, compile_scene, quat_to_matrix
+from dg16m_env.scene import Scene, compile_scene
 from dg16m_env.simulator import (
     Simulator,
     SimulatorError,
@@ -42,6 +42,7 @@ from dg16m_env.trial import (
     TrialProtocol,
     TrialResults,
     TrialStatus,
+    body_points,
     grasp_centres,
     object_states,
     run_trials,
@@ -265,9 +266,7 @@ def test_device_measures_match_measure_steps_on_the_same_states(short_scene: Sce
         )
         worlds.data.sensordata.assign(world_sensors.astype(np.float32))
         ref_pos, ref_quat, _ = object_states(short_scene, reference[trial])
-        body = np.einsum(
-            "nji,nkj->nki", quat_to_matrix(ref_quat), anchors[trial] - ref_pos[:, None]
-        )
+        body = body_points(anchors[trial], ref_pos, ref_quat)
         worlds.body_points.assign(body.astype(np.float32))
         worlds.reference.assign(ref_quat[:, [1, 2, 3, 0]].astype(np.float32))
         wp.launch(
