@@ -34,11 +34,12 @@ demo: $(STAMP)
 	@echo "demo outputs in $(DEMO)/: objects/ (meshes, parts, manifest.json), objects.png, benchmark.png, replay.png, submissions/, fce.json, leaderboard/ (board.db, site/index.html)"
 
 test: $(STAMP)
-	bash scripts/install_system_deps.sh chromium chromium-driver  # the page tests
+	# the page tests' browser; the real furniture library (the importer's tests)
+	bash scripts/install_system_deps.sh chromium chromium-driver sweethome3d-furniture
 	$(BIN)/python -m pytest -q
 
 test-all: $(STAMP)
-	bash scripts/install_system_deps.sh chromium chromium-driver  # the page tests
+	bash scripts/install_system_deps.sh chromium chromium-driver sweethome3d-furniture
 	$(BIN)/python -m pytest -q -m ""
 
 # Optional: MuJoCo Warp (`--simulator warp`). Installs the extra into .venv, then runs its tests

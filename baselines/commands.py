@@ -137,6 +137,7 @@ def run_reproduce(args: argparse.Namespace) -> int:
         reproduce.table3(
             args.out,
             benchmark=args.benchmark,
+            mesh_root=args.mesh_root,
             limit=args.limit,
             k=args.k,
             seed=args.seed,
@@ -149,6 +150,7 @@ def run_reproduce(args: argparse.Namespace) -> int:
             args.out,
             checkpoints=args.checkpoints,
             benchmark=args.benchmark,
+            mesh_root=args.mesh_root,
             limit=args.limit,
             k=args.k,
             progress=progress,

@@ -85,10 +85,13 @@ def _write_table(
     write_text_atomic(out / f"{stem}.csv", buffer.getvalue())
 
 
-def limited_benchmark(out: Path, limit: int | None, benchmark: Any = None) -> BenchmarkRef:
-    """The benchmark, or (``limit``) one of its first ``limit`` objects per family written to
-    ``out/benchmark-<limit>.h5``."""
-    ref = load_benchmark_ref(benchmark)
+def limited_benchmark(
+    out: Path, limit: int | None, benchmark: Any = None, mesh_root: Any = None
+) -> BenchmarkRef:
+    """The benchmark (with ``mesh_root``, the folder of a mesh benchmark's meshes when the file
+    does not carry them), or (``limit``) one of its first ``limit`` objects per family (mesh
+    objects are one family) written to ``out/benchmark-<limit>.h5``."""
+    ref = load_benchmark_ref(benchmark, mesh_root)
     if limit is None:
         return ref
     if limit < 1:
@@ -108,6 +111,7 @@ def limited_benchmark(out: Path, limit: int | None, benchmark: Any = None) -> Be
 def table3(
     out: str | os.PathLike[str],
     *,
+    mesh_root: str | os.PathLike[str] | None = None,
     benchmark: Any = None,
     limit: int | None = None,
     k: int = 10,
@@ -121,7 +125,7 @@ def table3(
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    ref = limited_benchmark(out, limit, benchmark)
+    ref = limited_benchmark(out, limit, benchmark, mesh_root)
     strategies = tuple(PAPER_TABLE3)
     paths = write_reference_submissions(
         out / "submissions",
@@ -199,6 +203,7 @@ def checkpoint_paths(folder: str | os.PathLike[str] | None) -> dict[tuple[str, s
 def table2(
     out: str | os.PathLike[str],
     *,
+    mesh_root: str | os.PathLike[str] | None = None,
     checkpoints: str | os.PathLike[str] | None = None,
     benchmark: Any = None,
     limit: int | None = None,
@@ -212,7 +217,7 @@ def table2(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     found = checkpoint_paths(checkpoints)
-    ref = limited_benchmark(out, limit, benchmark)
+    ref = limited_benchmark(out, limit, benchmark, mesh_root)
     evaluator = make("classifier", benchmark=ref, k=k, progress=progress)
     results, rows, chance = {}, [], None
     for (model, labels), path in found.items():

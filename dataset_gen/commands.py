@@ -35,6 +35,7 @@ def register(subparsers: Any) -> None:
     _register_objects_show(actions)
     _register_objects_check(actions)
     _register_objects_decompose(actions)
+    _register_objects_import_sweethome3d(actions)
     _register_show(subparsers)
     _register_inspect(subparsers)
     _register_grippers(subparsers)
@@ -211,6 +212,123 @@ def _register_objects_decompose(actions: Any) -> None:
         "(default: 20000)",
     )
     decompose.set_defaults(handler=_objects_decompose)
+
+
+def _register_objects_import_sweethome3d(actions: Any) -> None:
+    from dataset_gen.repair import RepairParameters
+    from dataset_gen.sweethome3d import DEFAULT_ROOT, MAX_ASPECT, SIZE_RANGE_M
+
+    defaults = RepairParameters()
+    command = add_command(
+        actions,
+        "import-sweethome3d",
+        "Import real furniture from Debian's sweethome3d-furniture libraries as a mesh folder.",
+        "  apt-get install -y sweethome3d-furniture\n"
+        "  dg16m objects import-sweethome3d --list                 # the catalogue and the filter\n"
+        "  dg16m objects import-sweethome3d --out runs/real --workers 2\n"
+        "  dg16m objects import-sweethome3d --out runs/chairs --category Office --limit 5\n"
+        "  dg16m benchmark build --meshes runs/real --out runs/real_bench\n",
+        description=(
+            "Read the Sweet Home 3D furniture libraries (*.sh3f), keep the models that are "
+            "dual-arm objects (no people, doors, windows, stairs, lights, vehicles, plants, "
+            f"textiles; longest / shortest catalogue side <= {MAX_ASPECT:g}), scale each to its "
+            f"catalogue size, then to a longest side in {SIZE_RANGE_M[0]:g}-{SIZE_RANGE_M[1]:g} m "
+            "(kept when the catalogue's is in range, else drawn uniformly, seeded), rebuild it "
+            "as one watertight volume (filled-voxel remesh, Taubin smoothing, stepwise quadric "
+            "decimation) and write OUT/<id>.obj in metres, OUT/manifest.json (source, creator, "
+            "licence, catalogue size, scale, repair, deviation from the source, sha256) and "
+            "OUT/ATTRIBUTION.md. Resumable. A model that cannot be repaired is listed with its "
+            "reason and skipped. Exit status: 0 when every model imported, 1 when some failed."
+        ),
+    )
+    command.add_argument("--out", type=Path, help="output folder (required unless --list)")
+    command.add_argument(
+        "--root",
+        type=Path,
+        default=DEFAULT_ROOT,
+        help=f"folder of *.sh3f (default: {DEFAULT_ROOT})",
+    )
+    command.add_argument(
+        "--list", action="store_true", help="print the catalogue with the filter's verdicts"
+    )
+    command.add_argument("--ids", default=None, help="comma-separated object ids to import")
+    command.add_argument(
+        "--category",
+        action="append",
+        default=None,
+        help="only this catalogue category (repeatable)",
+    )
+    command.add_argument(
+        "--limit", type=int, default=None, help="import the first N selected models"
+    )
+    command.add_argument("--seed", type=int, default=0, help="seed of the drawn sizes (default: 0)")
+    command.add_argument(
+        "--target-faces",
+        type=int,
+        default=defaults.target_faces,
+        help=f"most faces per object (default: {defaults.target_faces})",
+    )
+    command.add_argument(
+        "--pitch-fraction",
+        type=float,
+        default=defaults.pitch_fraction,
+        help=f"voxel size / longest side of the remesh (default: {defaults.pitch_fraction:g})",
+    )
+    command.add_argument("--workers", type=int, default=1, help="processes (default: 1)")
+    command.add_argument("--no-progress", action="store_true", help="no progress bar")
+    command.set_defaults(handler=_objects_import_sweethome3d)
+
+
+def _objects_import_sweethome3d(args: argparse.Namespace) -> int:
+    import json
+    from collections import Counter
+
+    from dataset_gen.repair import RepairParameters
+    from dataset_gen.sweethome3d import (
+        exclusion_reason,
+        import_library,
+        import_summary,
+        read_catalogs,
+        select_entries,
+    )
+
+    entries = read_catalogs(args.root)
+    if args.list:
+        reasons: Counter[str] = Counter()
+        for entry in entries:
+            reason = exclusion_reason(entry)
+            reasons[(reason or "kept").split(" (")[0]] += 1
+            print(
+                f"{'keep' if reason is None else 'drop'} {entry.object_id:44s} {entry.category:15s} "
+                f"{entry.width:7.1f} x {entry.depth:7.1f} x {entry.height:7.1f} cm  {entry.name}"
+                + ("" if reason is None else f"  [{reason}]")
+            )
+        print(f"{len(entries)} models: " + ", ".join(f"{k} {v}" for k, v in reasons.most_common()))
+        return 0
+    if args.out is None:
+        raise MeshError("--out: expected an output folder (or --list), found none")
+    if args.limit is not None:
+        check_integer("--limit", args.limit, minimum=1, error=MeshError)
+    ids = [i.strip() for i in args.ids.split(",") if i.strip()] if args.ids else None
+    chosen = select_entries(entries, ids=ids, categories=args.category, limit=args.limit)
+    repair = RepairParameters(target_faces=args.target_faces, pitch_fraction=args.pitch_fraction)
+    manifest = import_library(
+        args.out,
+        chosen,
+        root=args.root,
+        seed=args.seed,
+        repair=repair,
+        workers=args.workers,
+        progress=not args.no_progress,
+    )
+    summary = import_summary(
+        {"entries": {e.object_id: manifest["entries"][e.object_id] for e in chosen}}
+    )
+    print(json.dumps({k: v for k, v in summary.items() if k != "failures"}))
+    for object_id, error in summary["failures"].items():
+        print(f"FAIL {object_id}: {error}")
+    print(f"{summary['ok']} of {len(chosen)} models in {args.out} (manifest.json, ATTRIBUTION.md)")
+    return 1 if summary["failed"] else 0
 
 
 def _register_show(subparsers: Any) -> None:

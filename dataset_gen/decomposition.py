@@ -853,6 +853,19 @@ class _TriangleTree:
         return _compiled("distance")(np.ascontiguousarray(points, dtype=np.float64), *self._tree())
 
 
+def surface_distance(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
+    """(N,) exact distances (mesh units) from ``points`` (N, 3) to the surface of ``mesh``
+    (any triangle mesh; a bounding-sphere tree, O(log faces) per point). Zero-area faces
+    (they hold no surface, and the exact triangle projection divides by their area) are
+    left out."""
+    keep = np.asarray(mesh.area_faces) > 0
+    if not keep.all():
+        mesh = trimesh.Trimesh(mesh.vertices, np.asarray(mesh.faces)[keep], process=False)
+    if len(mesh.faces) == 0:
+        raise MeshError("expected a mesh with surface to measure distances to, found none")
+    return _TriangleTree(mesh).distance(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+
+
 def _compiled(name: str) -> Any:
     """The numba-compiled kernel ``"winding"`` or ``"distance"`` (compiled on first use and
     cached on disk, so importing this module does not import numba)."""

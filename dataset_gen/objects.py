@@ -222,11 +222,11 @@ def load_mesh(path: str | os.PathLike[str]) -> tuple[trimesh.Trimesh, CleaningRe
         )
     if path.stat().st_size == 0:
         raise MeshError(f"{path}: the file is empty (0 bytes)")
-    vertices, faces = _read_arrays(path)
+    vertices, faces = read_mesh_arrays(path)
     return clean_mesh(vertices, faces, name=str(path))
 
 
-def _read_arrays(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def read_mesh_arrays(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Parse ``path`` with trimesh without processing; scenes are flattened with their transforms."""
     try:
         loaded = trimesh.load(path, process=False, force=None)

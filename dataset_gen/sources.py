@@ -11,11 +11,21 @@ from __future__ import annotations
 import hashlib
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from .errors import MeshError
-from .objects import MESH_SUFFIXES, GraspObject, load_object
+from .hashing import mesh_sha256
+from .objects import (
+    MESH_SUFFIXES,
+    GraspObject,
+    clean_mesh,
+    load_object,
+    make_object,
+    read_mesh_arrays,
+)
 from .procedural import make_procedural_object
 
 
@@ -26,6 +36,12 @@ class ObjectSource:
     ``scale`` and ``allow_any_size`` apply to mesh files (see
     :func:`~dataset_gen.objects.load_object`): a file whose scaled size is implausible for a
     dual-arm object fails to load unless ``allow_any_size``.
+
+    ``mesh_arrays`` ((V, 3) float64 vertices, (F, 3) faces, as
+    :func:`~dataset_gen.objects.read_mesh_arrays` reads the file) stand in for the file (a
+    benchmark that carries its meshes); ``mesh.name`` then only names the object's file.
+    ``mesh_sha256`` (:func:`~dataset_gen.hashing.mesh_sha256`) is the mesh's identity: when
+    set, the arrays (given or read from the file) must hash to it, or loading fails.
     """
 
     object_id: str
@@ -34,9 +50,16 @@ class ObjectSource:
     family_seed: int | None = None
     scale: float | None = None
     allow_any_size: bool = False
+    mesh_arrays: tuple[np.ndarray, np.ndarray] | None = field(
+        default=None, compare=False, repr=False
+    )
+    mesh_sha256: str | None = None
 
     def load(self, mass: float) -> GraspObject:
-        """Build the object (raises :class:`~dataset_gen.errors.MeshError` for broken meshes)."""
+        """Build the object (raises :class:`~dataset_gen.errors.MeshError` for broken meshes
+        and for a mesh that does not match ``mesh_sha256``)."""
+        if self.mesh_arrays is not None or (self.mesh is not None and self.mesh_sha256):
+            return self._load_checked(mass)
         if self.mesh is not None:
             return load_object(
                 self.mesh,
@@ -51,6 +74,33 @@ class ObjectSource:
                 "found neither"
             )
         return make_procedural_object(self.family, self.family_seed, mass=mass)
+
+    def _load_checked(self, mass: float) -> GraspObject:
+        name = str(self.mesh) if self.mesh is not None else self.object_id
+        if self.mesh_arrays is not None:
+            vertices, faces = self.mesh_arrays
+            where = "the stored mesh"
+        else:
+            assert self.mesh is not None
+            vertices, faces = read_mesh_arrays(self.mesh)
+            where = str(self.mesh)
+        if self.mesh_sha256:
+            found = mesh_sha256(vertices, faces)
+            if found != self.mesh_sha256:
+                raise MeshError(
+                    f"{self.object_id}: expected a mesh with sha256 {self.mesh_sha256}, found "
+                    f"{found} in {where} (its bytes changed: labels made on the original mesh "
+                    "do not hold for it)"
+                )
+        mesh, report = clean_mesh(vertices, faces, name=name)
+        return make_object(
+            mesh,
+            object_id=self.object_id,
+            scale=self.scale,
+            mass=mass,
+            source=self.mesh,
+            cleaning=report,
+        )
 
     @property
     def object_file(self) -> str:

@@ -57,6 +57,16 @@ written before them): ``centers_of_mass`` ((O, 3) float64, m, object frame: wher
 applies the weight; absent = not known, ``None``), ``reseat_max`` ((O,) float64, m: the
 re-seating limit the object was built with, 0 = off; absent = 0).
 
+Mesh objects also carry (only when some object is a mesh): their meshes as read from their
+files, ``mesh_counts`` ((O, 2) int64: vertices and faces per object, 0 for procedural ones),
+``mesh_vertices`` ((sum V, 3) float64, m, the file's frame), ``mesh_faces`` ((sum F, 3) int32,
+indices into the object's own vertices) and ``mesh_sha256`` ((O,) str,
+:func:`dataset_gen.hashing.mesh_sha256` of the arrays; "" for procedural ones; a stored mesh
+that does not hash to it is refused on reading, and a mesh folder given instead must match it
+too); and their convex hulls as arrays instead of JSON (``parts`` is then ``"[]"``):
+``hull_objects`` ((O,) int32 hulls per object), ``hull_counts`` ((H,) int32 vertices per hull)
+and ``hull_vertices`` ((sum, 3) float64, m, object frame).
+
 ``grasps/`` (N rows): ``object_index`` (int32 row of ``objects/``), ``poses`` (N, 2, 4, 4) float64
 hand poses gripper -> object frame (m, dg16m grasp frame of the Panda hand),
 ``contact_points`` (N, 4, 3) float64 (m), ``contact_normals`` (N, 4, 3) float64 outward unit
@@ -89,7 +99,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -98,19 +108,28 @@ import h5py
 import numpy as np
 
 from dataset_gen.atomic import atomic_path
-from dataset_gen.checks import check_fields, known_fields
+from dataset_gen.budget import StageTimeoutError, run_with_budget
+from dataset_gen.checks import check_fields, check_integer, check_number, known_fields
 from dataset_gen.clearance import collision_parts
-from dataset_gen.decomposition import object_parts
-from dataset_gen.errors import Dg16mError
+from dataset_gen.decomposition import DecompositionParameters, decomposition_report, object_parts
+from dataset_gen.errors import Dg16mError, MeshError
 from dataset_gen.force_closure import evaluate
 from dataset_gen.gripper import get_gripper
+from dataset_gen.hashing import mesh_sha256
 from dataset_gen.io import (
     DualGraspSet,
     package_version,
     read_dg16m,
     write_array,
 )
-from dataset_gen.objects import MESH_SUFFIXES, ConvexPart, GraspObject, part_from_dict
+from dataset_gen.objects import (
+    MESH_SUFFIXES,
+    ConvexPart,
+    GraspObject,
+    part_from_dict,
+    parts_to_mesh,
+    read_mesh_arrays,
+)
 from dataset_gen.pairing import (
     candidate_pairs,
     dual_contacts,
@@ -159,6 +178,34 @@ ARMS = ("fc_pass", "fc_fail", "random", "farthest")
 EMBEDDED_BENCHMARK = Path(__file__).with_name("data") / BENCHMARK_FILE
 """The procedural benchmark built with the default parameters, shipped with the package."""
 
+REAL_BENCHMARK = Path(__file__).with_name("data") / "benchmark_real.h5"
+"""The real-object benchmark (:mod:`dg16m_env.real_benchmark`), shipped once built."""
+
+SHIPPED_BENCHMARKS: Mapping[str, Path] = {"procedural": EMBEDDED_BENCHMARK, "real": REAL_BENCHMARK}
+"""Benchmarks by short name; ``"procedural"`` is the default everywhere a benchmark is taken."""
+
+
+def benchmark_file(benchmark: str | os.PathLike[str] | None = None) -> Path:
+    """The file of a benchmark given by short name (:data:`SHIPPED_BENCHMARKS`), by path, or
+    ``None`` (the procedural one).
+
+    Raises:
+        BenchmarkError: a short name whose file is not shipped in this installation.
+    """
+    if benchmark is None:
+        return EMBEDDED_BENCHMARK
+    if isinstance(benchmark, str) and benchmark in SHIPPED_BENCHMARKS:
+        path = SHIPPED_BENCHMARKS[benchmark]
+        if not path.is_file():
+            raise BenchmarkError(
+                f"benchmark {benchmark!r}: expected the shipped file {path}, found none (this "
+                "installation does not ship it yet: build it with 'dg16m benchmark build-real' "
+                "and pass the path of its benchmark.h5)"
+            )
+        return path
+    return Path(benchmark)
+
+
 FLOAT_SIM = ("max_displacement", "max_rotation_deg", "max_penetration")
 """The float fields of the trial results (the others are codes, counts and flags)."""
 
@@ -192,6 +239,14 @@ class BenchmarkParameters:
         scene: simulation constants (``friction`` is set from ``mu``).
         protocol: trial protocol (``gravity`` is used by force closure too).
         perturbation: K, d and theta of the success probabilities (its seed is the labels').
+        coacd_threshold: CoACD's concavity threshold for mesh objects without convex parts
+            (None, the default: :data:`dataset_gen.decomposition.DEFAULT_THRESHOLD`); the parts
+            are stored in the file, so labels never depend on a re-run of CoACD.
+        object_from_parts: make a mesh object the exact union of its convex parts (manifold3d)
+            before sampling (False, the default: the mesh as loaded). Then grasps are sampled
+            on exactly the geometry the simulator collides (hull-to-mesh deviation 0 by
+            construction, as for procedural objects); the deviation from the loaded mesh is
+            the decomposition's, and the file carries the union as the object's mesh.
 
     ``mu``, ``mass``, ``f_high``, ``threshold``, ``min_center_distance`` and the scene's and
     protocol's friction, squeeze force and gravity default to the paper's values
@@ -214,8 +269,23 @@ class BenchmarkParameters:
     scene: SceneParameters = field(default_factory=SceneParameters)
     protocol: TrialProtocol = field(default_factory=TrialProtocol)
     perturbation: PerturbationSpec = field(default_factory=PerturbationSpec)
+    coacd_threshold: float | None = None
+    object_from_parts: bool = False
 
     def __post_init__(self) -> None:
+        if not isinstance(self.object_from_parts, bool):
+            raise BenchmarkError(
+                f"object_from_parts: expected True or False, found {self.object_from_parts!r}"
+            )
+        if self.coacd_threshold is not None and not (
+            isinstance(self.coacd_threshold, (int, float))
+            and not isinstance(self.coacd_threshold, bool)
+            and 0 < self.coacd_threshold <= 1
+        ):
+            raise BenchmarkError(
+                f"coacd_threshold: expected a number in (0, 1] or None, found "
+                f"{self.coacd_threshold!r}"
+            )
         check_fields(
             self,
             error=BenchmarkError,
@@ -229,7 +299,7 @@ class BenchmarkParameters:
                 "n_robust": 0,
             },
             zero_allowed=("min_center_distance", "failing_min_loss"),
-            skip=("scene", "protocol", "perturbation"),
+            skip=("scene", "protocol", "perturbation", "coacd_threshold", "object_from_parts"),
         )
         if self.scene.friction != self.mu:
             object.__setattr__(self, "scene", replace(self.scene, friction=self.mu))
@@ -241,7 +311,17 @@ class BenchmarkParameters:
         out["scene"] = self.scene.to_dict()
         if out["n_robust"] == 0:
             del out["n_robust"]
+        if out["coacd_threshold"] is None:
+            del out["coacd_threshold"]
+        if not out["object_from_parts"]:
+            del out["object_from_parts"]
         return out
+
+    def decomposition_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of :func:`dataset_gen.decomposition.object_parts`."""
+        if self.coacd_threshold is None:
+            return {}
+        return {"params": DecompositionParameters(threshold=float(self.coacd_threshold))}
 
     def force_closure_kwargs(self) -> dict[str, float]:
         """The force-closure problem of the benchmark's pairs: keyword arguments of
@@ -298,28 +378,59 @@ class BenchmarkObject:
     parts: tuple[ConvexPart, ...]
     center_of_mass: np.ndarray | None = None
     reseat_max: float = 0.0
+    mesh_vertices: np.ndarray | None = field(default=None, repr=False)
+    mesh_faces: np.ndarray | None = field(default=None, repr=False)
+    mesh_sha256: str = ""
+
+    @property
+    def has_mesh(self) -> bool:
+        """The file carries this object's mesh (no mesh folder is needed to load it)."""
+        return self.mesh_vertices is not None and self.mesh_faces is not None
 
     def source(self, mesh_root: str | os.PathLike[str] | None = None) -> ObjectSource:
-        """Where the object comes from (procedural: family and seed; mesh: ``mesh_root / file``
-        at the stored scale).
+        """Where the object comes from (procedural: family and seed; mesh: the mesh the file
+        carries, which must match the stored ``mesh_sha256``; for files that carry none,
+        ``mesh_root / file`` at the stored scale).
 
         Raises:
-            BenchmarkError: a mesh object and no ``mesh_root``.
+            BenchmarkError: a mesh object the file does not carry and no ``mesh_root``.
         """
         if self.family:
             return ObjectSource(self.object_id, family=self.family, family_seed=self.seed)
+        if self.has_mesh:  # the object is what the file carries (its hash is checked)
+            assert self.mesh_vertices is not None
+            assert self.mesh_faces is not None
+            return ObjectSource(
+                self.object_id,
+                mesh=Path(self.file),
+                scale=self.scale,
+                allow_any_size=True,
+                mesh_arrays=(self.mesh_vertices, self.mesh_faces),
+                mesh_sha256=self.mesh_sha256 or None,
+            )
         if mesh_root is None:
             raise BenchmarkError(
                 f"{self.object_id}: expected a mesh folder holding {self.file!r}, found none given"
             )
         # The stored scale is what the benchmark was built with: no plausibility check on size.
         return ObjectSource(
-            self.object_id, mesh=Path(mesh_root) / self.file, scale=self.scale, allow_any_size=True
+            self.object_id,
+            mesh=Path(mesh_root) / self.file,
+            scale=self.scale,
+            allow_any_size=True,
+            mesh_sha256=self.mesh_sha256 or None,
         )
 
     def load(self, mesh_root: str | os.PathLike[str] | None = None) -> GraspObject:
-        """Rebuild the :class:`GraspObject` (see :meth:`source`) at the stored mass."""
-        return self.source(mesh_root).load(self.mass)
+        """Rebuild the :class:`GraspObject` (see :meth:`source`) at the stored mass.
+
+        Raises:
+            BenchmarkError: no mesh to load, or a mesh whose hash differs from the stored one.
+        """
+        try:
+            return self.source(mesh_root).load(self.mass)
+        except MeshError as exc:
+            raise BenchmarkError(str(exc)) from None
 
     def __repr__(self) -> str:  # parts hold every hull vertex: count them instead
         origin = f"{self.family} seed {self.seed}" if self.family else f"mesh {self.file!r}"
@@ -537,17 +648,27 @@ def write_benchmark(path: str | os.PathLike[str], bench: Benchmark, *, level: in
         _strings(objects, "ids", [o.object_id for o in bench.objects])
         _strings(objects, "families", [o.family for o in bench.objects])
         _strings(objects, "files", [o.file for o in bench.objects])
+        hulls = [_hull_parts(o) for o in bench.objects]
         _strings(
             objects,
             "parts",
-            [json.dumps([p.to_dict() for p in o.parts], sort_keys=True) for o in bench.objects],
+            [
+                "[]"
+                if h is not None
+                else json.dumps([p.to_dict() for p in o.parts], sort_keys=True)
+                for o, h in zip(bench.objects, hulls, strict=True)
+            ],
         )
+        if any(h is not None for h in hulls):
+            _write_hulls(objects, hulls, level)
         write_array(objects, "seeds", np.array([o.seed for o in bench.objects], np.int64), None)
         write_array(objects, "scales", np.array([o.scale for o in bench.objects]), None)
         write_array(objects, "masses", np.array([o.mass for o in bench.objects]), None)
         write_array(
             objects, "reseat_max", np.array([o.reseat_max for o in bench.objects], float), None
         )
+        if any(o.has_mesh for o in bench.objects):
+            _write_meshes(objects, bench.objects, level)
         if bench.objects and all(o.center_of_mass is not None for o in bench.objects):
             centers = np.array([o.center_of_mass for o in bench.objects], dtype=np.float64)
             write_array(objects, "centers_of_mass", centers, None)
@@ -574,6 +695,119 @@ def write_benchmark(path: str | os.PathLike[str], bench: Benchmark, *, level: in
         write_array(labels, "p_success", bench.labels.p_success, level)
         write_array(labels, "p_gravity", bench.labels.p_gravity, level)
         write_array(labels, "label", bench.labels.label(), level)
+
+
+def _hull_parts(obj: BenchmarkObject) -> list[np.ndarray] | None:
+    """A mesh object's parts as hull vertex arrays when every part is a hull in the object
+    frame (CoACD's), stored as arrays (``objects/hull_*``); else ``None`` (parts as JSON)."""
+    if obj.family or not obj.parts:
+        return None
+    identity = np.eye(4)
+    if not all(
+        p.kind == "mesh" and p.vertices is not None and np.array_equal(p.pose, identity)
+        for p in obj.parts
+    ):
+        return None
+    return [np.asarray(p.vertices, dtype=np.float64) for p in obj.parts]
+
+
+def _write_hulls(objects: h5py.Group, hulls: Sequence[list[np.ndarray] | None], level: int) -> None:
+    per_object = np.array([0 if h is None else len(h) for h in hulls], dtype=np.int32)
+    arrays = [v for h in hulls if h is not None for v in h]
+    write_array(objects, "hull_objects", per_object, None)
+    write_array(objects, "hull_counts", np.array([len(v) for v in arrays], dtype=np.int32), level)
+    write_array(objects, "hull_vertices", np.concatenate(arrays).reshape(-1, 3), level)
+
+
+def _read_hulls(f: h5py.File, path: Path, o: int) -> list[list[ConvexPart]]:
+    """The parts stored as hull arrays (``objects/hull_*``), per object (empty when none)."""
+    if "objects/hull_objects" not in f:
+        return [[] for _ in range(o)]
+    per_object = _read(f, path, "objects/hull_objects", (o,), "i")
+    counts = _read(f, path, "objects/hull_counts", (int(per_object.sum()),), "i")
+    vertices = _read(f, path, "objects/hull_vertices", (None, 3), "f")
+    if per_object.min(initial=0) < 0 or counts.min(initial=4) < 4 or counts.sum() != len(vertices):
+        raise BenchmarkError(
+            f"{path}: objects/hull_counts: expected counts >= 4 summing to the "
+            f"{len(vertices)} hull vertices stored, found sum {int(counts.sum())}"
+        )
+    out: list[list[ConvexPart]] = []
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    k = 0
+    identity = np.eye(4)
+    for n in per_object.tolist():
+        parts = []
+        for _ in range(n):
+            block = vertices[starts[k] : starts[k + 1]].astype(np.float64)
+            try:
+                parts.append(ConvexPart("mesh", identity, (), block))
+            except Dg16mError as exc:
+                raise BenchmarkError(f"{path}: objects/hull_vertices, hull {k}: {exc}") from None
+            k += 1
+        out.append(parts)
+    return out
+
+
+def _write_meshes(objects: h5py.Group, items: Sequence[BenchmarkObject], level: int) -> None:
+    counts = np.array(
+        [
+            (len(o.mesh_vertices), len(o.mesh_faces))
+            if o.mesh_vertices is not None and o.mesh_faces is not None
+            else (0, 0)
+            for o in items
+        ],
+        dtype=np.int64,
+    ).reshape(-1, 2)
+    vertices = [o.mesh_vertices for o in items if o.mesh_vertices is not None]
+    faces = [o.mesh_faces for o in items if o.mesh_faces is not None]
+    write_array(objects, "mesh_counts", counts, None)
+    write_array(
+        objects, "mesh_vertices", np.concatenate(vertices).astype(np.float64).reshape(-1, 3), level
+    )
+    write_array(objects, "mesh_faces", np.concatenate(faces).astype(np.int32).reshape(-1, 3), level)
+    _strings(objects, "mesh_sha256", [o.mesh_sha256 for o in items])
+
+
+def _read_meshes(
+    f: h5py.File, path: Path, o: int
+) -> list[tuple[np.ndarray, np.ndarray, str] | None]:
+    """The carried meshes (``objects/mesh_*``), checked against their hashes; ``None`` for an
+    object without one (procedural) or when the file carries none."""
+    if "objects/mesh_counts" not in f:
+        return [None] * o
+    counts = _read(f, path, "objects/mesh_counts", (o, 2), "i")
+    vertices = _read(f, path, "objects/mesh_vertices", (None, 3), "f")
+    faces = _read(f, path, "objects/mesh_faces", (None, 3), "i")
+    hashes = [s.decode() for s in _read(f, path, "objects/mesh_sha256", (o,), "OS")]
+    if (
+        counts.min(initial=0) < 0
+        or counts[:, 0].sum() != len(vertices)
+        or counts[:, 1].sum() != len(faces)
+    ):
+        raise BenchmarkError(
+            f"{path}: objects/mesh_counts: expected counts summing to the {len(vertices)} "
+            f"vertices and {len(faces)} faces stored, found sums {counts.sum(axis=0).tolist()}"
+        )
+    out: list[tuple[np.ndarray, np.ndarray, str] | None] = []
+    v0 = f0 = 0
+    for i, (nv, nf) in enumerate(counts.tolist()):
+        if nv == 0:
+            out.append(None)
+            continue
+        v, fc = vertices[v0 : v0 + nv].astype(np.float64), faces[f0 : f0 + nf].astype(np.int64)
+        v0, f0 = v0 + nv, f0 + nf
+        if fc.size and (fc.min() < 0 or fc.max() >= nv):
+            raise BenchmarkError(
+                f"{path}: objects/mesh_faces of object {i}: expected indices in [0, {nv}), "
+                f"found [{fc.min()}, {fc.max()}]"
+            )
+        if mesh_sha256(v, fc) != hashes[i]:
+            raise BenchmarkError(
+                f"{path}: objects/mesh_sha256 of object {i}: expected the stored mesh to hash to "
+                f"{hashes[i]}, found {mesh_sha256(v, fc)} (the mesh bytes were changed)"
+            )
+        out.append((v, fc, hashes[i]))
+    return out
 
 
 def _read(
@@ -648,6 +882,8 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
             if "objects/centers_of_mass" in f
             else None
         )
+        meshes = _read_meshes(f, path, o)
+        hulls = _read_hulls(f, path, o)
         index = _read(f, path, "grasps/object_index", (None,), "i")
         n = index.size
         arrays = {
@@ -730,6 +966,7 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
             parts = tuple(part_from_dict(p) for p in json.loads(parts_json[i]))
         except (ValueError, TypeError, Dg16mError) as exc:
             raise BenchmarkError(f"{path}: objects/parts[{i}] ({ids[i]}): {exc}") from None
+        parts = (*parts, *hulls[i])
         objects.append(
             BenchmarkObject(
                 ids[i],
@@ -741,6 +978,13 @@ def read_benchmark(path: str | os.PathLike[str]) -> Benchmark:
                 parts,
                 center_of_mass=None if centers is None else centers[i].astype(np.float64),
                 reseat_max=float(reseat_max[i]),
+                **(
+                    {}
+                    if meshes[i] is None
+                    else dict(
+                        zip(("mesh_vertices", "mesh_faces", "mesh_sha256"), meshes[i], strict=True)
+                    )
+                ),
             )
         )
     try:
@@ -845,7 +1089,18 @@ def file_poses(data: DualGraspSet, rows: np.ndarray, gripper: str | None = None)
 def _object_metadata(
     obj: GraspObject, source: ObjectSource, parts: Sequence[ConvexPart], reseat_max: float
 ) -> BenchmarkObject:
+    mesh: dict[str, Any] = {}
+    if source.mesh is not None:  # a mesh object carries its mesh as read from its file
+        vertices, faces = (
+            source.mesh_arrays if source.mesh_arrays is not None else read_mesh_arrays(source.mesh)
+        )
+        mesh = {
+            "mesh_vertices": np.asarray(vertices, dtype=np.float64),
+            "mesh_faces": np.asarray(faces, dtype=np.int64),
+            "mesh_sha256": mesh_sha256(vertices, faces),
+        }
     return BenchmarkObject(
+        **mesh,
         object_id=obj.object_id,
         family=source.family or "",
         seed=int(source.family_seed) if source.family_seed is not None else -1,
@@ -1007,13 +1262,84 @@ def _file_pairs(
     }
 
 
+class ObjectRejectedError(BenchmarkError):
+    """An object that cannot give the benchmark enough passing pairs (see
+    :func:`benchmark_object`'s ``min_passing``); ``stage`` says where it was found out."""
+
+    def __init__(self, stage: str, message: str) -> None:
+        super().__init__(message)
+        self.stage = stage
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (self.stage, str(self)))
+
+
+def screen_passing(obj: GraspObject, params: BenchmarkParameters) -> int:
+    """How many force-closure-passing candidate pairs the object gives before its convex
+    decomposition exists: ``params.n_grasps`` grasps sampled against the mesh alone (no
+    open-hand clearance rule, which needs the parts), paired and checked as
+    :func:`sampled_pairs` does, from a stream of its own (the benchmark's draws do not change).
+    An upper estimate of what the build will find: the clearance rule only removes grasps."""
+    rng = np.random.default_rng(object_seed(params.seed, f"benchmark-screen:{obj.object_id}"))
+    grasps = sample_antipodal_grasps(obj, n_grasps=params.n_grasps, mu=params.mu, rng=rng)
+    candidates = candidate_pairs(grasps, min_center_distance=params.min_center_distance)
+    if len(candidates.pairs) == 0:
+        return 0
+    verdict = score_pairs(grasps, candidates.pairs, **params.force_closure_kwargs())
+    return int(np.sum(verdict.passed))
+
+
+def union_object(
+    obj: GraspObject, source: ObjectSource, parts: Sequence[ConvexPart], mass: float
+) -> tuple[GraspObject, ObjectSource, tuple[ConvexPart, ...]]:
+    """The object as the exact union of its convex ``parts`` (object frame), with the source
+    that rebuilds it from the union's arrays and the parts moved into its frame (the union is
+    centred at its own centroid, as every loaded object is)."""
+    try:
+        union = parts_to_mesh(parts)
+    except (MeshError, ValueError) as exc:
+        raise BenchmarkError(f"{obj.object_id}: union of its convex parts failed: {exc}") from None
+    arrays = (np.asarray(union.vertices, dtype=np.float64), np.asarray(union.faces, np.int64))
+    rebuilt = ObjectSource(
+        obj.object_id,
+        mesh=source.mesh,
+        scale=1.0,
+        allow_any_size=True,
+        mesh_arrays=arrays,
+        mesh_sha256=mesh_sha256(*arrays),
+    )
+    new = rebuilt.load(mass)
+    moved = tuple(part.transformed(1.0, new.offset) for part in parts)
+    return new, rebuilt, moved
+
+
+def _no_stage(name: str) -> None:
+    del name
+
+
 def benchmark_object(
-    item: BenchmarkSource, params: BenchmarkParameters, simulator: Simulator | None = None
+    item: BenchmarkSource,
+    params: BenchmarkParameters,
+    simulator: Simulator | None = None,
+    *,
+    min_passing: int = 0,
+    on_stage: Callable[[str], None] | None = None,
 ) -> Benchmark:
     """Choose, optionally re-seat (``item.reseat_max``; the summary goes to
     ``metadata["reseat"]``) and simulate one object's dual grasps on ``simulator`` (default C
     MuJoCo; another engine is named in ``metadata["simulator"]``), with each pair's hand-line
-    distance and the object's centre of mass (see the module docstring)."""
+    distance and the object's centre of mass (see the module docstring).
+
+    Args:
+        min_passing: for sampled objects, the fewest ``fc_pass`` pairs the object must give
+            (0 = any): checked before the convex decomposition (:func:`screen_passing`) and
+            after sampling, before any trial; :class:`ObjectRejectedError` says which.
+        on_stage: called with ``"load"``, ``"screen"`` (only with ``min_passing``),
+            ``"decompose"``, ``"sample"`` and ``"label"`` as the work enters each (for time
+            budgets, :func:`dataset_gen.budget.run_with_budget`).
+    """
+    stage = on_stage or _no_stage
+    stage("load")
     simulator = check_simulator(simulator)
     source = item.source
     data = read_dg16m(item.grasp_file) if item.grasp_file is not None else None
@@ -1022,13 +1348,35 @@ def benchmark_object(
         # authoritative, so the size is not second-guessed.
         source = replace(source, scale=data.object_scale, allow_any_size=True)
     obj = source.load(params.mass)
-    parts = object_parts(obj)
+    if min_passing and data is None:
+        stage("screen")
+        found = screen_passing(obj, params)
+        if found < min_passing:
+            raise ObjectRejectedError(
+                "screen",
+                f"{obj.object_id}: expected at least {min_passing} force-closure-passing "
+                f"candidate pairs, found {found} before the clearance rule (screening)",
+            )
+    stage("decompose")
+    parts = object_parts(obj, **params.decomposition_kwargs())
+    if params.object_from_parts and not obj.parts and data is None:
+        obj, source, parts = union_object(obj, source, parts, params.mass)
+    stage("sample")
     rng = np.random.default_rng(object_seed(params.seed, f"benchmark:{obj.object_id}"))
     rows = (
         _file_pairs(item, data, params, rng)
         if data is not None
         else sampled_pairs(obj, params, rng, parts=parts)
     )
+    if min_passing and data is None:
+        found = int(np.sum(rows["source"] == SOURCES.index("fc_pass")))
+        if found < min_passing:
+            raise ObjectRejectedError(
+                "sample",
+                f"{obj.object_id}: expected at least {min_passing} fc_pass pairs, found {found} "
+                "with the open-hand clearance rule",
+            )
+    stage("label")
     scene = compile_scene(obj, params=params.scene, parts=parts)
     n = len(rows["poses"])
     reseat = None
@@ -1241,12 +1589,96 @@ def file_benchmark_sources(
     return out
 
 
+@dataclass(frozen=True)
+class BuildLimits:
+    """What a build admits and how long it waits for one object (real meshes vary widely: one
+    wardrobe took CoACD 18 minutes and then gave no pair).
+
+    Attributes:
+        min_passing: the fewest ``fc_pass`` pairs an object must give to be built (0 = any);
+            checked before the decomposition and before the trials
+            (:func:`benchmark_object`).
+        decompose_s: seconds for the convex decomposition (None = no limit).
+        sample_s: seconds for sampling, pairing and force closure (and the screening).
+        label_s: seconds for the trials.
+
+    An object past a budget is stopped (its child process is killed) and recorded as failed
+    with ``rejected: "time budget"`` and the stage; one with too few pairs with ``rejected:
+    "too few passing pairs"``. With any budget each object runs in a child process
+    (:func:`dataset_gen.budget.run_with_budget`; about 2 s to start).
+    """
+
+    min_passing: int = 0
+    decompose_s: float | None = None
+    sample_s: float | None = None
+    label_s: float | None = None
+
+    def __post_init__(self) -> None:
+        check_integer("min_passing", self.min_passing, error=BenchmarkError)
+        for name in ("decompose_s", "sample_s", "label_s"):
+            if getattr(self, name) is not None:
+                check_number(name, getattr(self, name), error=BenchmarkError)
+
+    def budgets(self) -> dict[str, float]:
+        """Seconds per stage of :func:`benchmark_object` that has a budget."""
+        stages = {"decompose": self.decompose_s, "screen": self.sample_s}
+        stages.update({"sample": self.sample_s, "label": self.label_s})
+        return {k: float(v) for k, v in stages.items() if v is not None}
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def _budgeted_object(
+    item: BenchmarkSource,
+    params: BenchmarkParameters,
+    simulator: Simulator,
+    min_passing: int,
+    *,
+    on_stage: Callable[[str], None],
+) -> Benchmark:
+    return benchmark_object(item, params, simulator, min_passing=min_passing, on_stage=on_stage)
+
+
+def _seconds(times: Mapping[str, float]) -> dict[str, float]:
+    return {k: round(float(v), 1) for k, v in times.items()}
+
+
 def _object_task(
-    item: BenchmarkSource, out: str, params: BenchmarkParameters, simulator: Simulator
+    item: BenchmarkSource,
+    out: str,
+    params: BenchmarkParameters,
+    simulator: Simulator,
+    limits: BuildLimits | None = None,
 ) -> dict[str, Any]:
     relative = f"{OBJECTS_FOLDER}/{item.object_id}.h5"
+    times: dict[str, float] = {}
+    min_passing = limits.min_passing if limits is not None else 0
     try:
-        bench = benchmark_object(item, params, simulator)
+        if limits is not None and limits.budgets():
+            done = run_with_budget(
+                _budgeted_object, (item, params, simulator, min_passing), limits.budgets()
+            )
+            bench, times = done.value, done.times
+        else:
+            bench = benchmark_object(item, params, simulator, min_passing=min_passing)
+    except StageTimeoutError as exc:
+        return {
+            "status": "failed",
+            "files": {},
+            "error": f"{item.object_id}: {exc}",
+            "rejected": "time budget",
+            "stage": exc.stage,
+            "stage_seconds": _seconds(exc.times),
+        }
+    except ObjectRejectedError as exc:
+        return {
+            "status": "failed",
+            "files": {},
+            "error": str(exc),
+            "rejected": "too few passing pairs",
+            "stage": exc.stage,
+        }
     except Dg16mError as exc:  # a broken mesh or grasp file fails only its own entry
         return {"status": "failed", "files": {}, "error": str(exc)}
     write_benchmark(Path(out) / relative, bench)
@@ -1266,6 +1698,23 @@ def _object_task(
         entry["reseat"] = bench.metadata.get("reseat", {}).get(
             item.object_id, {"max_shift_m": item.reseat_max, **shift_summary(bench.reseat_shift)}
         )
+    if limits is not None:
+        entry["arms"] = {
+            name: int(np.sum(bench.source == k))
+            for k, name in enumerate(SOURCES)
+            if np.any(bench.source == k)
+        }
+        built = bench.objects[0]
+        entry["parts"] = len(built.parts)
+        if not built.family:  # a mesh: how far its hulls stand off it (hull to mesh, one-sided)
+            report = decomposition_report(built.load().mesh, built.parts, seed=0)
+            entry["hull_deviation_mm"] = {
+                "max": round(1000 * report.deviation_max, 3),
+                "p95": round(1000 * report.deviation_p95, 3),
+                "mean": round(1000 * report.deviation_mean, 3),
+            }
+        if times:
+            entry["stage_seconds"] = _seconds(times)
     return entry
 
 
@@ -1289,8 +1738,14 @@ def build_benchmark(
     address: str | None = None,
     progress: bool = True,
     simulator: Simulator | str | None = None,
+    limits: BuildLimits | None = None,
 ) -> Path:
     """Build (or resume) a benchmark in ``out``; returns the path of ``benchmark.h5``.
+
+    ``limits`` (:class:`BuildLimits`): the fewest passing pairs an object must give and time
+    budgets per stage; objects that fail them are left out and listed in the manifest with
+    the reason and stage (recorded in its parameters, so a resume with other limits is
+    refused).
 
     ``simulator`` runs the trials (default C MuJoCo; with MuJoCo Warp on one GPU keep
     ``workers=1``: one object's trials already fill the device). A build with another engine
@@ -1306,15 +1761,61 @@ def build_benchmark(
     simulator = check_simulator(simulator)
     simulator.check_available()
     root = Path(out)
+    manifest = build_objects(
+        items,
+        root,
+        params,
+        simulator=simulator,
+        limits=limits,
+        workers=workers,
+        backend=backend,
+        address=address,
+        progress=progress,
+    )
+    return write_built_benchmark(
+        root, [item.object_id for item in items], manifest, params, simulator
+    )
+
+
+def build_parameters(
+    items: Sequence[BenchmarkSource],
+    params: BenchmarkParameters,
+    simulator: Simulator,
+    limits: BuildLimits | None,
+) -> dict[str, Any]:
+    """The manifest parameters of a build (a resume must match them)."""
     engine = {} if simulator.is_default else {"simulator": simulator.name}
-    manifest = run_resumable(
+    extra = {} if limits is None else {"limits": limits.to_dict()}
+    return json.loads(
+        json.dumps({**params.to_dict(), **_reseat_parameters(items), **engine, **extra})
+    )
+
+
+def build_objects(
+    items: Sequence[BenchmarkSource],
+    root: Path,
+    params: BenchmarkParameters,
+    *,
+    simulator: Simulator,
+    limits: BuildLimits | None = None,
+    workers: int = 1,
+    backend: Backend = "local",
+    address: str | None = None,
+    progress: bool = True,
+    parameters: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Build (or resume) every object of ``items`` into ``root/objects/``; returns the
+    manifest (one entry per object: ``ok`` with counts, or ``failed`` with the reason)."""
+    return run_resumable(
         _object_task,
         items,
-        (str(root.resolve()), params, simulator),
+        (str(root.resolve()), params, simulator, limits),
         root=root,
         kind="benchmark",
-        parameters=json.loads(
-            json.dumps({**params.to_dict(), **_reseat_parameters(items), **engine})
+        parameters=(
+            dict(parameters)
+            if parameters is not None
+            else build_parameters(items, params, simulator, limits)
         ),
         folders=(OBJECTS_FOLDER,),
         error=BenchmarkError,
@@ -1324,10 +1825,30 @@ def build_benchmark(
         progress=progress,
         desc="benchmark",
     )
-    ids = [item.object_id for item in items]
+
+
+def write_built_benchmark(
+    root: Path,
+    ids: Sequence[str],
+    manifest: Mapping[str, Any],
+    params: BenchmarkParameters,
+    simulator: Simulator,
+) -> Path:
+    """Concatenate the finished objects ``ids`` (in that order) into ``root/benchmark.h5``.
+
+    Raises:
+        BenchmarkError: none of them finished (the reasons are named).
+    """
     done = [i for i in ids if manifest["entries"].get(i, {}).get("status") == "ok"]
     if not done:
-        raise BenchmarkError(f"{root}: expected at least one object to build, found all failed")
+        reasons = sorted(
+            {manifest["entries"][i].get("error", "?") for i in ids if i in manifest["entries"]}
+        )
+        raise BenchmarkError(
+            f"{root}: expected at least one object to build, found all failed: "
+            + "; ".join(reasons[:5])
+            + (f" (and {len(reasons) - 5} more, see manifest.json)" if len(reasons) > 5 else "")
+        )
     parts = [read_benchmark(root / manifest["entries"][i]["files"]["benchmark"]) for i in done]
     metadata = benchmark_metadata(params, simulator)
     reseat = {k: v for part in parts for k, v in part.metadata.get("reseat", {}).items()}

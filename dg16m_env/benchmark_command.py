@@ -11,6 +11,7 @@ from typing import Any
 
 from dataset_gen.cli import add_command
 from dataset_gen.parameters import PROTOCOL
+from dg16m_env.evaluate_command import benchmark_argument
 from dg16m_env.reseat import DEFAULT_RESEAT_MAX, RESEAT_STEP  # no MuJoCo: --help stays fast
 from dg16m_env.simulator import add_simulator_arguments, simulator_from_args
 
@@ -177,7 +178,11 @@ def register(subparsers: Any) -> None:
         "(rebuild older ones with 'dg16m benchmark build').",
     )
     info.add_argument(
-        "file", type=Path, nargs="?", default=None, help="benchmark.h5 (default: the shipped one)"
+        "file",
+        type=benchmark_argument,
+        nargs="?",
+        default=None,
+        help="benchmark.h5, or a shipped benchmark by name: 'procedural' (the default) or 'real'",
     )
     info.add_argument(
         "--json",
@@ -193,6 +198,99 @@ def register(subparsers: Any) -> None:
         "GSR by hand-line distance, hands without contact after close)",
     )
     info.set_defaults(handler=_info)
+    _register_real(sub)
+
+
+REAL_EXAMPLES = (
+    "  apt-get install -y sweethome3d-furniture\n"
+    "  dg16m objects import-sweethome3d --out runs/real_meshes --workers 2\n"
+    "  # a pilot: 14 objects, 2 per category\n"
+    "  dg16m benchmark build-real --meshes runs/real_meshes --out runs/real_pilot --limit 14\n"
+    "  # the whole benchmark (resumable: rerun to continue)\n"
+    "  dg16m benchmark build-real --meshes runs/real_meshes --out runs/real --workers 2\n"
+)
+
+
+def _register_real(sub: Any) -> None:
+    from dg16m_env.real_benchmark import REAL_LIMITS, REAL_SIZE
+
+    split = add_command(
+        sub,
+        "split-real",
+        "Make the real benchmark's split from an import folder (stratified by category).",
+        "  dg16m benchmark split-real --meshes runs/real_meshes --out real_split.json\n",
+        description=(
+            f"Order each category's imported objects by a seeded permutation and give each "
+            f"category its share of the {REAL_SIZE} benchmark objects; the rest is the training "
+            "split. Records every object's OBJ sha256 (the build refuses a changed mesh)."
+        ),
+    )
+    split.add_argument("--meshes", type=Path, required=True, help="an import-sweethome3d folder")
+    split.add_argument("--out", type=Path, required=True, help="the split file to write (JSON)")
+    split.add_argument("--size", type=int, default=REAL_SIZE, help=f"default: {REAL_SIZE}")
+    split.add_argument("--seed", type=int, default=0, help="default: 0")
+    split.set_defaults(handler=_split_real)
+
+    build = add_command(
+        sub,
+        "build-real",
+        "Build the real-object benchmark from imported furniture, replacing objects that fail.",
+        REAL_EXAMPLES,
+        description=(
+            "Build the benchmark split (the shipped dg16m_env/data/real_split.json, or --split) "
+            "of an import folder with the paper's four arms, 20 fc_robust pairs and K = 8. An "
+            f"object with fewer than {REAL_LIMITS.min_passing} force-closure-passing pairs "
+            "(screened before its decomposition, checked again before its trials), or whose "
+            f"decomposition ({REAL_LIMITS.decompose_s:g} s), sampling ({REAL_LIMITS.sample_s:g} "
+            f"s) or trials ({REAL_LIMITS.label_s:g} s) run past their budgets, is rejected with "
+            "its stage and replaced by the next object of its category. Resumable. Writes "
+            "OUT/benchmark.h5 (carrying every mesh and its convex parts) and OUT/real_split.json "
+            "(the split the build ended with)."
+        ),
+    )
+    build.add_argument("--meshes", type=Path, required=True, help="an import-sweethome3d folder")
+    build.add_argument("--out", type=Path, required=True, help="build folder")
+    build.add_argument("--split", type=Path, default=None, help="split file (default: shipped)")
+    build.add_argument("--limit", type=int, default=None, help="a pilot of N objects")
+    build.add_argument("--workers", type=int, default=1, help="processes (default: 1)")
+    build.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_simulator_arguments(build)
+    build.set_defaults(handler=_build_real)
+
+
+def _split_real(args: argparse.Namespace) -> int:
+    from dg16m_env.real_benchmark import import_entries, make_split, write_split
+
+    split = make_split(import_entries(args.meshes), size=args.size, seed=args.seed)
+    write_split(args.out, split)
+    quotas = ", ".join(f"{c} {v['quota']}" for c, v in split["categories"].items())
+    print(
+        f"wrote {args.out}: {len(split['benchmark'])} benchmark and {len(split['train'])} "
+        f"training objects ({quotas})"
+    )
+    return 0
+
+
+def _build_real(args: argparse.Namespace) -> int:
+    from dg16m_env.benchmark import read_benchmark
+    from dg16m_env.benchmark_report import format_summary
+    from dg16m_env.real_benchmark import build_real_benchmark, read_split
+
+    split = read_split(args.split) if args.split is not None else None
+    path, final = build_real_benchmark(
+        args.meshes,
+        args.out,
+        split=split,
+        limit=args.limit,
+        workers=args.workers,
+        progress=not args.no_progress,
+        simulator=simulator_from_args(args),
+    )
+    print(format_summary(read_benchmark(path), path=path))
+    for object_id, why in sorted(final["rejected"].items()):
+        print(f"rejected {object_id} ({why['reason']}, stage {why['stage']}): {why['error']}")
+    print(f"wrote {path} and {args.out / 'real_split.json'}")
+    return 0
 
 
 def _sources(args: argparse.Namespace) -> list[Any]:

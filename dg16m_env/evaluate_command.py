@@ -37,14 +37,26 @@ class EvaluateCommandError(Dg16mError, ValueError):
     """Bad ``dg16m evaluate`` / ``dg16m submission`` arguments."""
 
 
+def benchmark_argument(text: str) -> Path:
+    """``--benchmark``'s value: a short name (``procedural``, ``real``) resolved to its shipped
+    file, or a path."""
+    from dg16m_env.benchmark import BenchmarkError, benchmark_file
+
+    try:
+        return benchmark_file(text)
+    except BenchmarkError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def add_benchmark_arguments(parser: argparse.ArgumentParser) -> None:
     """``--benchmark`` and ``--mesh-root``: the benchmark a command works on (also used by the
     commands of the packages above, e.g. ``dg16m baselines submissions``)."""
     parser.add_argument(
         "--benchmark",
-        type=Path,
+        type=benchmark_argument,
         default=None,
-        help="benchmark file (default: the one shipped with dg16m)",
+        help="benchmark file, or a shipped benchmark by name: 'procedural' (the default) or "
+        "'real' (real furniture, once shipped)",
     )
     parser.add_argument(
         "--mesh-root", type=Path, default=None, help="folder of a mesh benchmark's meshes"

@@ -181,7 +181,9 @@ Reset options: ``object_id`` (str), ``target_grasp`` (see above).
 
 Version history
 ---------------
-* v0: initial.
+* v0: initial. Later (same id, same default): `benchmark` also takes a shipped benchmark's
+  short name (`"procedural"`, the default, or `"real"` once shipped), and mesh benchmarks that
+  carry their meshes need no `mesh_root`.
 """
 
 from __future__ import annotations

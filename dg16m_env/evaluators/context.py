@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from dataset_gen.hashing import file_sha256
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, Benchmark, read_benchmark
+from dg16m_env.benchmark import EMBEDDED_BENCHMARK, Benchmark, benchmark_file, read_benchmark
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,14 +50,15 @@ def load_benchmark_ref(
     benchmark: str | os.PathLike[str] | BenchmarkRef | None = None,
     mesh_root: str | os.PathLike[str] | None = None,
 ) -> BenchmarkRef:
-    """Read a benchmark file (default: the embedded procedural benchmark) and hash it.
+    """Read a benchmark (a file, a short name of :data:`~dg16m_env.benchmark.SHIPPED_BENCHMARKS`
+    such as ``"real"``, default: the embedded procedural benchmark) and hash it.
 
     Raises:
         BenchmarkError: the file is missing or malformed.
     """
     if isinstance(benchmark, BenchmarkRef):
         return benchmark
-    path = Path(benchmark) if benchmark is not None else EMBEDDED_BENCHMARK
+    path = benchmark_file(benchmark)
     bench = read_benchmark(path)  # validates, and says so when the file is missing
     return BenchmarkRef(
         path=path,

@@ -1,0 +1,113 @@
+"""The real-object benchmark's numbers: the import (time, faces, deviation per object) and a
+build (admitted and rejected objects by stage, seconds per stage, hulls, hull-to-mesh deviation,
+fc_pass counts, invalid nominal trials per arm, GSR per arm), from the folders they wrote.
+
+    .venv/bin/python bench/real_build.py --import runs/real_meshes --build runs/real_pilot
+    .venv/bin/python bench/real_build.py --import runs/real_meshes --json runs/real_numbers.json
+
+The wall time of a build is the sum of its objects' stage seconds over the worker count (the
+manifest records each object's seconds per stage; objects finished in an earlier session
+count with the seconds they took then).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dataset_gen.atomic import write_json_atomic
+from dataset_gen.sweethome3d import import_summary
+
+
+def _percentiles(values: list[float]) -> dict[str, float] | None:
+    if not values:
+        return None
+    p = np.percentile(values, [10, 50, 90, 100])
+    return {"p10": float(p[0]), "p50": float(p[1]), "p90": float(p[2]), "max": float(p[3])}
+
+
+def build_numbers(folder: Path) -> dict[str, Any]:
+    """Per-stage and per-arm numbers of a build folder (manifest and finished objects)."""
+    from dg16m_env.benchmark import SOURCES, read_benchmark
+
+    manifest = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
+    entries = manifest["entries"]
+    ok = {k: e for k, e in entries.items() if e["status"] == "ok"}
+    failed = {k: e for k, e in entries.items() if e["status"] != "ok"}
+    stages: dict[str, list[float]] = {}
+    for entry in entries.values():
+        for stage, seconds in entry.get("stage_seconds", {}).items():
+            stages.setdefault(stage, []).append(float(seconds))
+    total = sum(sum(e.get("stage_seconds", {}).values()) for e in entries.values())
+    out: dict[str, Any] = {
+        "objects": len(entries),
+        "admitted": len(ok),
+        "rejected_by_stage": dict(
+            Counter(
+                f"{e.get('rejected', 'error')} / {e.get('stage', '?')}" for e in failed.values()
+            )
+        ),
+        "core_seconds_total": total,
+        "core_seconds_per_object": total / max(1, len(entries)),
+        "stage_seconds": {k: _percentiles(v) for k, v in sorted(stages.items())},
+        "hulls": _percentiles([float(e["parts"]) for e in ok.values() if "parts" in e]),
+        "hull_p95_mm": _percentiles(
+            [e["hull_deviation_mm"]["p95"] for e in ok.values() if "hull_deviation_mm" in e]
+        ),
+        "hull_max_mm": _percentiles(
+            [e["hull_deviation_mm"]["max"] for e in ok.values() if "hull_deviation_mm" in e]
+        ),
+        "objects_over_2mm_p95": sorted(
+            k for k, e in ok.items() if e.get("hull_deviation_mm", {}).get("p95", 0) > 2.0
+        ),
+    }
+    arms: dict[str, dict[str, Any]] = {}
+    for object_id, entry in sorted(ok.items()):
+        bench = read_benchmark(folder / entry["files"]["benchmark"])
+        valid = bench.trials.valid
+        p = bench.p()
+        for k, name in enumerate(SOURCES):
+            rows = bench.source == k
+            if not rows.any():
+                continue
+            arm = arms.setdefault(name, {"pairs": 0, "invalid": 0, "p_sum": 0.0, "objects": 0})
+            arm["pairs"] += int(rows.sum())
+            arm["invalid"] += int((rows & ~valid).sum())
+            arm["p_sum"] += float(p[rows].sum())
+            arm["objects"] += 1
+        del object_id
+    for arm in arms.values():
+        arm["invalid_share"] = arm["invalid"] / max(1, arm["pairs"])
+        arm["gsr"] = arm.pop("p_sum") / max(1, arm["pairs"])
+    out["arms"] = arms
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--import", dest="imported", type=Path, default=None)
+    parser.add_argument("--build", type=Path, default=None)
+    parser.add_argument("--json", type=Path, default=None, help="also write the numbers here")
+    args = parser.parse_args(argv)
+    if args.imported is None and args.build is None:
+        parser.error("expected --import and/or --build, found neither")
+    numbers: dict[str, Any] = {}
+    if args.imported is not None:
+        manifest = json.loads((args.imported / "manifest.json").read_text(encoding="utf-8"))
+        numbers["import"] = import_summary(manifest)
+    if args.build is not None:
+        numbers["build"] = build_numbers(args.build)
+    print(json.dumps(numbers, indent=2))
+    if args.json is not None:
+        write_json_atomic(args.json, numbers)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,145 @@
+"""Run one object's work in a child process with a time budget per stage.
+
+Some real meshes take CoACD or the trials far longer than others (one wardrobe: 18 minutes of
+CoACD; one thin vase: more than 33 minutes of a benchmark build). A build over hundreds of
+objects must not wait for them: :func:`run_with_budget` runs ``fn(*args, on_stage=...)`` in a
+fresh (spawned) child process; ``fn`` calls ``on_stage(name)`` when it enters a stage, and the
+parent kills the child when a stage runs past its budget. Compiled code (CoACD, MuJoCo) cannot
+be interrupted from inside its own process; a child can always be killed.
+
+Errors the work raises on purpose (:class:`~dataset_gen.errors.Dg16mError`) come back as
+themselves; anything else (a bug) comes back as a :class:`RuntimeError` with the child's
+traceback, never hidden.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import time
+import traceback
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from dataset_gen.errors import Dg16mError
+
+StageCallback = Callable[[str], None]
+
+
+class StageTimeoutError(Dg16mError, RuntimeError):
+    """A stage ran past its budget; the child was killed.
+
+    Attributes:
+        stage: the stage that ran out of time.
+        budget: its budget (s).
+        times: seconds spent in each stage entered, in order.
+    """
+
+    def __init__(self, stage: str, budget: float, times: Mapping[str, float]) -> None:
+        super().__init__(
+            f"expected stage {stage!r} to finish within its budget of {budget:g} s, found it "
+            "still running (stopped)"
+        )
+        self.stage = stage
+        self.budget = budget
+        self.times = dict(times)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (self.stage, self.budget, self.times))
+
+
+@dataclass
+class BudgetedResult:
+    """What :func:`run_with_budget` returns: the work's value and the seconds of each stage."""
+
+    value: Any
+    times: dict[str, float] = field(default_factory=dict)
+
+
+def _child(conn: Any, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
+    def on_stage(name: str) -> None:
+        conn.send(("stage", name))
+
+    try:
+        value = fn(*args, on_stage=on_stage)
+    except Dg16mError as exc:
+        conn.send(("error", exc))
+    except BaseException:  # a bug: its traceback goes to the parent, which raises it
+        conn.send(("crash", traceback.format_exc()))
+    else:
+        conn.send(("result", value))
+    finally:
+        conn.close()
+
+
+def run_with_budget(
+    fn: Callable[..., Any],
+    args: tuple[Any, ...],
+    budgets: Mapping[str, float],
+    *,
+    poll_s: float = 0.5,
+) -> BudgetedResult:
+    """``fn(*args, on_stage=callback)`` in a spawned child, each stage within ``budgets[stage]``
+    seconds (stages without a budget are unlimited; the time before the first ``on_stage`` call
+    is stage ``"start"``).
+
+    Args:
+        fn: a module-level function (it is pickled to the child) taking ``on_stage``.
+        args: its positional arguments (picklable).
+        budgets: seconds per stage name.
+        poll_s: how often the parent checks the child when no stage has a budget.
+
+    Raises:
+        StageTimeoutError: a stage ran past its budget (the child is killed).
+        Dg16mError: what ``fn`` raised of that kind.
+        RuntimeError: ``fn`` raised anything else (with the child's traceback), or the child
+            died without an answer (e.g. killed for memory).
+    """
+    for name, seconds in budgets.items():
+        if not (isinstance(seconds, (int, float)) and seconds > 0):
+            raise ValueError(f"budgets[{name!r}]: expected seconds > 0, found {seconds!r}")
+    context = multiprocessing.get_context("spawn")
+    receiver, sender = context.Pipe(duplex=False)
+    process = context.Process(target=_child, args=(sender, fn, args), daemon=True)
+    process.start()
+    sender.close()
+    stage, started = "start", time.monotonic()
+    times: dict[str, float] = {}
+    try:
+        while True:
+            budget = budgets.get(stage)
+            left = poll_s if budget is None else max(0.0, started + budget - time.monotonic())
+            if receiver.poll(min(left, poll_s) if budget is not None else poll_s):
+                try:
+                    kind, value = receiver.recv()
+                except EOFError:
+                    process.join()
+                    raise RuntimeError(
+                        f"expected an answer from the worker process, found it ended with exit "
+                        f"code {process.exitcode} in stage {stage!r}"
+                    ) from None
+                now = time.monotonic()
+                if kind == "stage":
+                    times[stage] = times.get(stage, 0.0) + now - started
+                    stage, started = value, now
+                    continue
+                times[stage] = times.get(stage, 0.0) + now - started
+                process.join()
+                if kind == "result":
+                    return BudgetedResult(value, times)
+                if kind == "error":
+                    raise value
+                raise RuntimeError(f"the worker process failed in stage {stage!r}:\n{value}")
+            if budget is not None and time.monotonic() - started >= budget:
+                times[stage] = time.monotonic() - started
+                raise StageTimeoutError(stage, budget, times)
+            if not process.is_alive() and not receiver.poll():
+                raise RuntimeError(
+                    f"expected an answer from the worker process, found it ended with exit code "
+                    f"{process.exitcode} in stage {stage!r}"
+                )
+    finally:
+        if process.is_alive():
+            process.kill()
+        process.join()
+        receiver.close()

@@ -1,0 +1,366 @@
+"""The real-object benchmark: its split, the build with admission rules, time budgets and
+replacements, benchmark files that carry their meshes (and refuse changed ones), short
+benchmark names, and ``dg16m reproduce --mesh-root``."""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+import pytest
+import trimesh
+
+from dataset_gen.budget import StageTimeoutError, run_with_budget
+from dataset_gen.cli import main as cli_main
+from dataset_gen.decomposition import DecompositionParameters, object_parts
+from dataset_gen.errors import MeshError
+from dg16m_env.benchmark import (
+    EMBEDDED_BENCHMARK,
+    SOURCES,
+    BenchmarkError,
+    BenchmarkParameters,
+    BuildLimits,
+    benchmark_file,
+    build_benchmark,
+    mesh_benchmark_sources,
+    read_benchmark,
+)
+from dg16m_env.labels import PerturbationSpec
+from dg16m_env.real_benchmark import (
+    REAL_SPLIT_FILE,
+    build_real_benchmark,
+    check_split,
+    chosen_ids,
+    make_split,
+    read_split,
+    real_sources,
+    with_membership,
+)
+
+TINY = BenchmarkParameters(
+    n_grasps=40,
+    n_passing=3,
+    n_failing=2,
+    n_random=2,
+    n_farthest=2,
+    perturbation=PerturbationSpec(n_perturbations=1),
+)
+
+
+@pytest.fixture(autouse=True)
+def coarse_parts(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """Quick CoACD settings and a private cache (the faithful settings are tested elsewhere)."""
+    from dg16m_env import benchmark as benchmark_module
+
+    monkeypatch.setenv("DG16M_CACHE_DIR", str(tmp_path / "cache"))
+    coarse = functools.partial(object_parts, params=DecompositionParameters(threshold=0.05))
+    monkeypatch.setattr(benchmark_module, "object_parts", coarse)
+
+
+def _plank(folder: Path, name: str, size: tuple[float, float, float] = (0.5, 0.05, 0.3)) -> Path:
+    path = folder / f"{name}.obj"
+    path.write_text(trimesh.creation.box(size).export(file_type="obj"), encoding="utf-8")
+    return path
+
+
+def _import_folder(
+    folder: Path, objects: dict[str, tuple[str, tuple[float, float, float]]]
+) -> Path:
+    """An import folder as 'dg16m objects import-sweethome3d' writes it: meshes + manifest."""
+    folder.mkdir(parents=True, exist_ok=True)
+    entries = {}
+    for object_id, (category, size) in objects.items():
+        path = _plank(folder, object_id, size)
+        entries[object_id] = {
+            "status": "ok",
+            "files": {"mesh": path.name},
+            "sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
+            "source": {"object_id": object_id, "category": category},
+        }
+    manifest = {
+        "format": "dg16m-manifest",
+        "schema_version": 1,
+        "kind": "sweethome3d-import",
+        "created_by": "test",
+        "parameters": {},
+        "entries": entries,
+    }
+    (folder / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
+    return folder
+
+
+# --------------------------------------------------------------------------------------------
+# The split
+# --------------------------------------------------------------------------------------------
+
+
+def _entries(counts: dict[str, int]) -> dict[str, Any]:
+    out = {}
+    for category, n in counts.items():
+        for i in range(n):
+            object_id = f"{category.lower()}-{i:02d}"
+            out[object_id] = {
+                "status": "ok",
+                "sha256": f"{i:064x}",
+                "source": {"object_id": object_id, "category": category},
+            }
+    out["broken"] = {"status": "failed", "error": "no volume", "source": {"category": "A"}}
+    return out
+
+
+def test_split_is_stratified_disjoint_and_seeded() -> None:
+    entries = _entries({"A": 20, "B": 10, "C": 10})
+    split = make_split(entries, size=10, seed=0)
+    quotas = {c: v["quota"] for c, v in split["categories"].items()}
+    assert quotas == {"A": 5, "B": 3, "C": 2} or quotas == {"A": 5, "B": 2, "C": 3}
+    assert sum(quotas.values()) == 10
+    assert len(split["benchmark"]) == 10
+    assert not set(split["benchmark"]) & set(split["train"])
+    assert len(split["benchmark"]) + len(split["train"]) == 40
+    assert split["import_failed"] == {"broken": "no volume"}
+    assert make_split(entries, size=10, seed=0) == split
+    assert make_split(entries, size=10, seed=1)["benchmark"] != split["benchmark"]
+    # a rejected object is replaced by the next of its category's order
+    first_a = split["categories"]["A"]["order"][0]
+    split["rejected"] = {first_a: {"stage": "screen", "reason": "too few passing pairs"}}
+    replaced = with_membership(split)
+    assert first_a not in replaced["benchmark"]
+    assert first_a not in replaced["train"]
+    assert split["categories"]["A"]["order"][5] in replaced["benchmark"]
+    assert len(replaced["benchmark"]) == 10
+    with pytest.raises(BenchmarkError, match="expected at least 50 imported objects, found 40"):
+        make_split(entries, size=50)
+
+
+def test_split_check_refuses_overlap_and_other_files() -> None:
+    split = make_split(_entries({"A": 6}), size=3)
+    bad = {**split, "train": [*split["train"], split["benchmark"][0]]}
+    with pytest.raises(BenchmarkError, match="expected disjoint benchmark and train ids"):
+        check_split(bad)
+    with pytest.raises(BenchmarkError, match="expected format 'dg16m-real-split'"):
+        check_split({"format": "other"})
+
+
+@pytest.mark.skipif(not REAL_SPLIT_FILE.is_file(), reason="no real split shipped")
+def test_shipped_split_has_300_benchmark_ids_disjoint_from_training() -> None:
+    split = read_split()
+    assert len(split["benchmark"]) == 300
+    assert len(set(split["benchmark"])) == 300
+    assert not set(split["benchmark"]) & set(split["train"])
+    assert set(split["benchmark"]) | set(split["train"]) <= set(split["sha256"])
+    assert sum(c["quota"] for c in split["categories"].values()) == 300
+    assert chosen_ids(split) == split["benchmark"]
+
+
+# --------------------------------------------------------------------------------------------
+# Time budgets
+# --------------------------------------------------------------------------------------------
+
+
+def _staged(seconds: float, fail: str = "", *, on_stage: Any) -> str:
+    on_stage("quick")
+    on_stage("slow")
+    if fail == "error":
+        raise MeshError("a broken mesh")
+    if fail == "crash":
+        raise KeyError("a bug")
+    time.sleep(seconds)
+    return "done"
+
+
+def test_budget_stops_a_stage_that_runs_past_it() -> None:
+    start = time.monotonic()
+    with pytest.raises(StageTimeoutError, match="'slow' to finish within its budget of 1 s") as e:
+        run_with_budget(_staged, (60.0,), {"slow": 1.0})
+    assert e.value.stage == "slow"
+    assert time.monotonic() - start < 30  # killed, not waited for
+    done = run_with_budget(_staged, (0.0,), {"slow": 30.0})
+    assert done.value == "done"
+    assert set(done.times) == {"start", "quick", "slow"}
+    with pytest.raises(MeshError, match="a broken mesh"):
+        run_with_budget(_staged, (0.0, "error"), {})
+    with pytest.raises(RuntimeError, match="KeyError: 'a bug'"):
+        run_with_budget(_staged, (0.0, "crash"), {})
+
+
+# --------------------------------------------------------------------------------------------
+# Files that carry their meshes
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def plank_build(tmp_path: Path) -> tuple[Path, Path]:
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    _plank(meshes, "plank")
+    path = build_benchmark(mesh_benchmark_sources(meshes), tmp_path / "bench", TINY, progress=False)
+    return path, meshes
+
+
+def test_a_mesh_benchmark_carries_its_mesh_and_refuses_a_changed_one(
+    plank_build: tuple[Path, Path],
+) -> None:
+    path, meshes = plank_build
+    bench = read_benchmark(path)
+    obj = bench.objects[0]
+    assert obj.has_mesh
+    carried = obj.load()  # no mesh folder needed
+    from dataset_gen.objects import load_object
+
+    from_folder = load_object(meshes / "plank.obj")
+    np.testing.assert_array_equal(carried.mesh.vertices, from_folder.mesh.vertices)
+    np.testing.assert_array_equal(carried.mesh.faces, from_folder.mesh.faces)
+    # the hulls are stored as arrays, exactly (labels never depend on a re-run of CoACD)
+    with h5py.File(path, "r") as f:
+        assert f["objects/parts"][0] == b"[]"
+        assert int(f["objects/hull_objects"][0]) == len(obj.parts)
+    direct = object_parts(carried, params=DecompositionParameters(threshold=0.05))
+    assert len(direct) == len(obj.parts)
+    for a, b in zip(direct, obj.parts, strict=True):
+        np.testing.assert_array_equal(a.vertices, b.vertices)
+    copy = path.with_name("copy.h5")
+    from dg16m_env.benchmark import write_benchmark
+
+    write_benchmark(copy, bench)
+    assert copy.read_bytes() == path.read_bytes()
+    # the object is the mesh the file carries: a changed file on disk does not relabel it
+    changed = trimesh.creation.box((0.5, 0.06, 0.3)).export(file_type="obj")
+    (meshes / "plank.obj").write_text(changed, encoding="utf-8")
+    np.testing.assert_array_equal(obj.load(meshes).mesh.vertices, carried.mesh.vertices)
+    # and so is a file whose carried mesh was edited
+    with h5py.File(path, "r+") as f:
+        vertices = f["objects/mesh_vertices"][()]
+        vertices[0, 0] += 1e-3
+        f["objects/mesh_vertices"][...] = vertices
+    with pytest.raises(BenchmarkError, match="the mesh bytes were changed"):
+        read_benchmark(path)
+
+
+def test_admission_rule_rejects_an_object_without_enough_passing_pairs(tmp_path: Path) -> None:
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    _plank(meshes, "plank")
+    _plank(meshes, "cube", (0.3, 0.3, 0.3))  # wider than the Panda hand opens
+    limits = BuildLimits(min_passing=TINY.n_passing)
+    out = tmp_path / "bench"
+    path = build_benchmark(mesh_benchmark_sources(meshes), out, TINY, limits=limits, progress=False)
+    manifest = json.loads((out / "manifest.json").read_text())
+    cube = manifest["entries"]["cube"]
+    assert cube["status"] == "failed"
+    assert (cube["rejected"], cube["stage"]) == ("too few passing pairs", "screen")
+    assert manifest["parameters"]["limits"]["min_passing"] == TINY.n_passing
+    plank = manifest["entries"]["plank"]
+    assert plank["arms"]["fc_pass"] == TINY.n_passing
+    assert [o.object_id for o in read_benchmark(path).objects] == ["plank"]
+    with pytest.raises(BenchmarkError, match="min_passing"):
+        BuildLimits(min_passing=-1)
+
+
+def test_real_build_replaces_rejected_objects_and_checks_hashes(tmp_path: Path) -> None:
+    meshes = _import_folder(
+        tmp_path / "import",
+        {
+            "a-cube": ("A", (0.3, 0.3, 0.3)),
+            "a-plank": ("A", (0.5, 0.05, 0.3)),
+            "b-plank": ("B", (0.4, 0.06, 0.3)),
+        },
+    )
+    from dg16m_env.real_benchmark import import_entries
+
+    split = make_split(import_entries(meshes), size=2, seed=0)
+    # put the cube first in category A, so that it must be replaced
+    split["categories"]["A"]["order"] = ["a-cube", "a-plank"]
+    split = with_membership(split)
+    assert split["benchmark"] == ["a-cube", "b-plank"]
+    limits = BuildLimits(min_passing=TINY.n_passing)
+    path, final = build_real_benchmark(
+        meshes, tmp_path / "out", split=split, params=TINY, limits=limits, progress=False
+    )
+    assert final["benchmark"] == ["a-plank", "b-plank"]
+    assert final["rejected"]["a-cube"]["stage"] == "screen"
+    assert final["train"] == []
+    bench = read_benchmark(path)
+    assert [o.object_id for o in bench.objects] == ["a-plank", "b-plank"]
+    assert all(o.has_mesh for o in bench.objects)
+    assert set(np.unique(bench.source)) <= {SOURCES.index(a) for a in SOURCES}
+    written = json.loads((tmp_path / "out" / "real_split.json").read_text())
+    assert written["benchmark"] == ["a-plank", "b-plank"]
+    # a mesh changed after the split was made is an error
+    _plank(meshes, "b-plank", (0.4, 0.07, 0.3))
+    with pytest.raises(BenchmarkError, match="the mesh changed since the split was made"):
+        real_sources(meshes, ["b-plank"], split)
+
+
+# --------------------------------------------------------------------------------------------
+# Benchmarks by name
+# --------------------------------------------------------------------------------------------
+
+
+def test_benchmarks_by_short_name(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert benchmark_file(None) == EMBEDDED_BENCHMARK
+    assert benchmark_file("procedural") == EMBEDDED_BENCHMARK
+    assert benchmark_file(str(tmp_path / "x.h5")) == tmp_path / "x.h5"
+    from dg16m_env.benchmark import REAL_BENCHMARK
+
+    if not REAL_BENCHMARK.is_file():
+        with pytest.raises(BenchmarkError, match="does not ship it yet"):
+            benchmark_file("real")
+        with pytest.raises(SystemExit) as exit_info:  # argparse refuses the argument
+            cli_main(["benchmark", "info", "real"])
+        assert exit_info.value.code == 2
+        assert "does not ship it yet" in capsys.readouterr().err
+    else:
+        assert benchmark_file("real") == REAL_BENCHMARK
+
+
+def test_reproduce_passes_the_mesh_root_on(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("torch")
+    from baselines import reproduce
+
+    seen: dict[str, Any] = {}
+
+    def table2(out: Path, **kwargs: Any) -> dict[str, Any]:
+        seen.update(kwargs)
+        (Path(out) / "table2.md").parent.mkdir(parents=True, exist_ok=True)
+        (Path(out) / "table2.md").write_text("table", encoding="utf-8")
+        return {}
+
+    monkeypatch.setattr(reproduce, "table2", table2)
+    args = ["reproduce", "table2", "--out", str(tmp_path / "t2"), "--mesh-root", str(tmp_path)]
+    assert cli_main(args) == 0
+    assert seen["mesh_root"] == tmp_path
+
+
+def test_object_from_parts_samples_on_exactly_what_is_simulated(tmp_path: Path) -> None:
+    from dataclasses import replace
+
+    from dataset_gen.decomposition import decomposition_report
+
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    path = meshes / "stool.obj"
+    stool = trimesh.creation.box((0.4, 0.4, 0.05))
+    leg = trimesh.creation.box((0.05, 0.05, 0.4))
+    leg.apply_translation((0.15, 0.15, -0.2))
+    solid = trimesh.boolean.union([stool, leg], engine="manifold")
+    path.write_text(solid.export(file_type="obj"), encoding="utf-8")
+    params = replace(TINY, object_from_parts=True)
+    out = build_benchmark(mesh_benchmark_sources(meshes), tmp_path / "a", params, progress=False)
+    bench = read_benchmark(out)
+    obj = bench.objects[0]
+    assert obj.has_mesh
+    loaded = obj.load()
+    report = decomposition_report(loaded.mesh, obj.parts, samples=2000)
+    assert report.deviation_p95 < 1e-6  # the hulls are the object
+    np.testing.assert_allclose(loaded.mass_properties.center_of_mass, obj.center_of_mass)
+    again = build_benchmark(mesh_benchmark_sources(meshes), tmp_path / "b", params, progress=False)
+    assert again.read_bytes() == out.read_bytes()  # deterministic, union included
+    assert bench.metadata["parameters"]["object_from_parts"] is True
