@@ -8,7 +8,7 @@ parent kills the child when a stage runs past its budget. Compiled code (CoACD, 
 be interrupted from inside its own process; a child can always be killed.
 
 Errors the work raises on purpose (:class:`~dataset_gen.errors.Dg16mError`) come back as
-themselves; anything else (a bug) comes back as a :class:`RuntimeError` with the child's
+themselves, with the seconds spent in each stage as their ``stage_times``; anything else (a bug) comes back as a :class:`RuntimeError` with the child's
 traceback, never hidden.
 """
 
@@ -56,18 +56,30 @@ class BudgetedResult:
     times: dict[str, float] = field(default_factory=dict)
 
 
+class _ParentGoneError(Exception):
+    """The parent closed its end (it was stopped): the child has no one to answer."""
+
+
 def _child(conn: Any, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
-    def on_stage(name: str) -> None:
-        conn.send(("stage", name))
+    def send(message: tuple[str, Any]) -> None:
+        try:
+            conn.send(message)
+        except (BrokenPipeError, ConnectionResetError):
+            raise _ParentGoneError from None
 
     try:
-        value = fn(*args, on_stage=on_stage)
-    except Dg16mError as exc:
-        conn.send(("error", exc))
-    except BaseException:  # a bug: its traceback goes to the parent, which raises it
-        conn.send(("crash", traceback.format_exc()))
-    else:
-        conn.send(("result", value))
+        try:
+            value = fn(*args, on_stage=lambda name: send(("stage", name)))
+        except _ParentGoneError:
+            return
+        except Dg16mError as exc:
+            send(("error", exc))
+        except BaseException:  # a bug: its traceback goes to the parent, which raises it
+            send(("crash", traceback.format_exc()))
+        else:
+            send(("result", value))
+    except _ParentGoneError:
+        return
     finally:
         conn.close()
 
@@ -128,6 +140,7 @@ def run_with_budget(
                 if kind == "result":
                     return BudgetedResult(value, times)
                 if kind == "error":
+                    value.stage_times = dict(times)  # where the time went, for the caller
                     raise value
                 raise RuntimeError(f"the worker process failed in stage {stage!r}:\n{value}")
             if budget is not None and time.monotonic() - started >= budget:

@@ -62,8 +62,8 @@ files, ``mesh_counts`` ((O, 2) int64: vertices and faces per object, 0 for proce
 ``mesh_vertices`` ((sum V, 3) float64, m, the file's frame), ``mesh_faces`` ((sum F, 3) int32,
 indices into the object's own vertices) and ``mesh_sha256`` ((O,) str,
 :func:`dataset_gen.hashing.mesh_sha256` of the arrays; "" for procedural ones; a stored mesh
-that does not hash to it is refused on reading, and a mesh folder given instead must match it
-too); and their convex hulls as arrays instead of JSON (``parts`` is then ``"[]"``):
+that does not hash to it is refused on reading; the carried mesh is the object, so no mesh folder
+is read for it); and their convex hulls as arrays instead of JSON (``parts`` is then ``"[]"``):
 ``hull_objects`` ((O,) int32 hulls per object), ``hull_counts`` ((H,) int32 vertices per hull)
 and ``hull_vertices`` ((sum, 3) float64, m, object frame).
 
@@ -127,7 +127,6 @@ from dataset_gen.objects import (
     ConvexPart,
     GraspObject,
     part_from_dict,
-    parts_to_mesh,
     read_mesh_arrays,
 )
 from dataset_gen.pairing import (
@@ -239,14 +238,9 @@ class BenchmarkParameters:
         scene: simulation constants (``friction`` is set from ``mu``).
         protocol: trial protocol (``gravity`` is used by force closure too).
         perturbation: K, d and theta of the success probabilities (its seed is the labels').
-        coacd_threshold: CoACD's concavity threshold for mesh objects without convex parts
-            (None, the default: :data:`dataset_gen.decomposition.DEFAULT_THRESHOLD`); the parts
-            are stored in the file, so labels never depend on a re-run of CoACD.
-        object_from_parts: make a mesh object the exact union of its convex parts (manifold3d)
-            before sampling (False, the default: the mesh as loaded). Then grasps are sampled
-            on exactly the geometry the simulator collides (hull-to-mesh deviation 0 by
-            construction, as for procedural objects); the deviation from the loaded mesh is
-            the decomposition's, and the file carries the union as the object's mesh.
+        decomposition: CoACD's settings for mesh objects without convex parts (None, the
+            default: :class:`dataset_gen.decomposition.DecompositionParameters`' defaults); the
+            parts are stored in the file, so labels never depend on a re-run of CoACD.
 
     ``mu``, ``mass``, ``f_high``, ``threshold``, ``min_center_distance`` and the scene's and
     protocol's friction, squeeze force and gravity default to the paper's values
@@ -269,22 +263,15 @@ class BenchmarkParameters:
     scene: SceneParameters = field(default_factory=SceneParameters)
     protocol: TrialProtocol = field(default_factory=TrialProtocol)
     perturbation: PerturbationSpec = field(default_factory=PerturbationSpec)
-    coacd_threshold: float | None = None
-    object_from_parts: bool = False
+    decomposition: DecompositionParameters | None = None
 
     def __post_init__(self) -> None:
-        if not isinstance(self.object_from_parts, bool):
-            raise BenchmarkError(
-                f"object_from_parts: expected True or False, found {self.object_from_parts!r}"
-            )
-        if self.coacd_threshold is not None and not (
-            isinstance(self.coacd_threshold, (int, float))
-            and not isinstance(self.coacd_threshold, bool)
-            and 0 < self.coacd_threshold <= 1
+        if self.decomposition is not None and not isinstance(
+            self.decomposition, DecompositionParameters
         ):
             raise BenchmarkError(
-                f"coacd_threshold: expected a number in (0, 1] or None, found "
-                f"{self.coacd_threshold!r}"
+                "decomposition: expected DecompositionParameters or None, found "
+                f"{type(self.decomposition).__name__}"
             )
         check_fields(
             self,
@@ -299,7 +286,7 @@ class BenchmarkParameters:
                 "n_robust": 0,
             },
             zero_allowed=("min_center_distance", "failing_min_loss"),
-            skip=("scene", "protocol", "perturbation", "coacd_threshold", "object_from_parts"),
+            skip=("scene", "protocol", "perturbation", "decomposition"),
         )
         if self.scene.friction != self.mu:
             object.__setattr__(self, "scene", replace(self.scene, friction=self.mu))
@@ -311,17 +298,15 @@ class BenchmarkParameters:
         out["scene"] = self.scene.to_dict()
         if out["n_robust"] == 0:
             del out["n_robust"]
-        if out["coacd_threshold"] is None:
-            del out["coacd_threshold"]
-        if not out["object_from_parts"]:
-            del out["object_from_parts"]
+        if self.decomposition is None:
+            del out["decomposition"]
+        else:
+            out["decomposition"] = self.decomposition.to_dict()
         return out
 
     def decomposition_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of :func:`dataset_gen.decomposition.object_parts`."""
-        if self.coacd_threshold is None:
-            return {}
-        return {"params": DecompositionParameters(threshold=float(self.coacd_threshold))}
+        return {} if self.decomposition is None else {"params": self.decomposition}
 
     def force_closure_kwargs(self) -> dict[str, float]:
         """The force-closure problem of the benchmark's pairs: keyword arguments of
@@ -351,6 +336,15 @@ class BenchmarkParameters:
                 values["protocol"] = TrialProtocol.from_dict(values["protocol"])
             if "perturbation" in values:
                 values["perturbation"] = PerturbationSpec.from_dict(values["perturbation"])
+            if "decomposition" in values:
+                values["decomposition"] = DecompositionParameters(
+                    **known_fields(
+                        DecompositionParameters,
+                        values["decomposition"],
+                        what="decomposition",
+                        error=BenchmarkError,
+                    )
+                )
         except Dg16mError as exc:
             raise BenchmarkError(f"parameters: {exc}") from None
         return cls(**values)
@@ -1289,30 +1283,6 @@ def screen_passing(obj: GraspObject, params: BenchmarkParameters) -> int:
     return int(np.sum(verdict.passed))
 
 
-def union_object(
-    obj: GraspObject, source: ObjectSource, parts: Sequence[ConvexPart], mass: float
-) -> tuple[GraspObject, ObjectSource, tuple[ConvexPart, ...]]:
-    """The object as the exact union of its convex ``parts`` (object frame), with the source
-    that rebuilds it from the union's arrays and the parts moved into its frame (the union is
-    centred at its own centroid, as every loaded object is)."""
-    try:
-        union = parts_to_mesh(parts)
-    except (MeshError, ValueError) as exc:
-        raise BenchmarkError(f"{obj.object_id}: union of its convex parts failed: {exc}") from None
-    arrays = (np.asarray(union.vertices, dtype=np.float64), np.asarray(union.faces, np.int64))
-    rebuilt = ObjectSource(
-        obj.object_id,
-        mesh=source.mesh,
-        scale=1.0,
-        allow_any_size=True,
-        mesh_arrays=arrays,
-        mesh_sha256=mesh_sha256(*arrays),
-    )
-    new = rebuilt.load(mass)
-    moved = tuple(part.transformed(1.0, new.offset) for part in parts)
-    return new, rebuilt, moved
-
-
 def _no_stage(name: str) -> None:
     del name
 
@@ -1359,8 +1329,6 @@ def benchmark_object(
             )
     stage("decompose")
     parts = object_parts(obj, **params.decomposition_kwargs())
-    if params.object_from_parts and not obj.parts and data is None:
-        obj, source, parts = union_object(obj, source, parts, params.mass)
     stage("sample")
     rng = np.random.default_rng(object_seed(params.seed, f"benchmark:{obj.object_id}"))
     rows = (
@@ -1672,13 +1640,16 @@ def _object_task(
             "stage_seconds": _seconds(exc.times),
         }
     except ObjectRejectedError as exc:
-        return {
+        entry = {
             "status": "failed",
             "files": {},
             "error": str(exc),
             "rejected": "too few passing pairs",
             "stage": exc.stage,
         }
+        if getattr(exc, "stage_times", None):
+            entry["stage_seconds"] = _seconds(exc.stage_times)
+        return entry
     except Dg16mError as exc:  # a broken mesh or grasp file fails only its own entry
         return {"status": "failed", "files": {}, "error": str(exc)}
     write_benchmark(Path(out) / relative, bench)
@@ -1723,7 +1694,7 @@ def _reseat_parameters(items: Sequence[BenchmarkSource]) -> dict[str, Any]:
     limits is refused): nothing when every object has it off (manifests of builds without
     re-seating are unchanged)."""
     limits = sorted({float(item.reseat_max) for item in items})
-    if limits == [0.0]:
+    if limits in ([0.0], []):
         return {}
     return {"reseat_max": limits[0] if len(limits) == 1 else limits}
 

@@ -339,28 +339,12 @@ def test_reproduce_passes_the_mesh_root_on(
     assert seen["mesh_root"] == tmp_path
 
 
-def test_object_from_parts_samples_on_exactly_what_is_simulated(tmp_path: Path) -> None:
-    from dataclasses import replace
+def test_decomposition_settings_are_recorded_and_read_back() -> None:
+    from dg16m_env.real_benchmark import REAL_PARAMETERS
 
-    from dataset_gen.decomposition import decomposition_report
-
-    meshes = tmp_path / "meshes"
-    meshes.mkdir()
-    path = meshes / "stool.obj"
-    stool = trimesh.creation.box((0.4, 0.4, 0.05))
-    leg = trimesh.creation.box((0.05, 0.05, 0.4))
-    leg.apply_translation((0.15, 0.15, -0.2))
-    solid = trimesh.boolean.union([stool, leg], engine="manifold")
-    path.write_text(solid.export(file_type="obj"), encoding="utf-8")
-    params = replace(TINY, object_from_parts=True)
-    out = build_benchmark(mesh_benchmark_sources(meshes), tmp_path / "a", params, progress=False)
-    bench = read_benchmark(out)
-    obj = bench.objects[0]
-    assert obj.has_mesh
-    loaded = obj.load()
-    report = decomposition_report(loaded.mesh, obj.parts, samples=2000)
-    assert report.deviation_p95 < 1e-6  # the hulls are the object
-    np.testing.assert_allclose(loaded.mass_properties.center_of_mass, obj.center_of_mass)
-    again = build_benchmark(mesh_benchmark_sources(meshes), tmp_path / "b", params, progress=False)
-    assert again.read_bytes() == out.read_bytes()  # deterministic, union included
-    assert bench.metadata["parameters"]["object_from_parts"] is True
+    data = json.loads(json.dumps(REAL_PARAMETERS.to_dict()))
+    assert data["decomposition"]["mcts_iterations"] == 60
+    assert BenchmarkParameters.from_dict(data) == REAL_PARAMETERS
+    assert "decomposition" not in BenchmarkParameters().to_dict()  # older files keep their bytes
+    with pytest.raises(BenchmarkError, match="decomposition"):
+        BenchmarkParameters.from_dict({"decomposition": {"threshold": 0.01, "bogus": 1}})
