@@ -348,3 +348,20 @@ def test_decomposition_settings_are_recorded_and_read_back() -> None:
     assert "decomposition" not in BenchmarkParameters().to_dict()  # older files keep their bytes
     with pytest.raises(BenchmarkError, match="decomposition"):
         BenchmarkParameters.from_dict({"decomposition": {"threshold": 0.01, "bogus": 1}})
+
+
+def test_float32_hulls_are_what_is_simulated_and_stored(tmp_path: Path) -> None:
+    from dataclasses import replace
+
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    _plank(meshes, "plank")
+    params = replace(TINY, hull_float32=True)
+    path = build_benchmark(mesh_benchmark_sources(meshes), tmp_path / "b", params, progress=False)
+    with h5py.File(path, "r") as f:
+        assert f["objects/hull_vertices"].dtype == np.float32
+    obj = read_benchmark(path).objects[0]
+    for part in obj.parts:
+        assert part.vertices is not None
+        np.testing.assert_array_equal(part.vertices, part.vertices.astype(np.float32))
+    assert read_benchmark(path).metadata["parameters"]["hull_float32"] is True
