@@ -50,7 +50,7 @@ import numpy as np
 import trimesh
 
 from dataset_gen.atomic import write_bytes_atomic, write_text_atomic
-from dataset_gen.errors import Dg16mError, MeshError
+from dataset_gen.errors import Dg16mError
 from dataset_gen.repair import RepairParameters, repair_mesh, surface_deviation
 from dataset_gen.sources import object_seed
 
@@ -420,7 +420,7 @@ def import_model(
         source = read_model(entry, root)
         scaled, sizing = catalog_mesh(entry, source, seed)
         repaired, report = repair_mesh(scaled, repair)
-    except (Dg16mError, MeshError) as exc:
+    except Dg16mError as exc:  # MeshError and SweetHomeError: this model only
         return {**base, "status": "failed", "files": {}, "error": str(exc)}
     rng = np.random.default_rng(object_seed(seed, f"sweethome3d-deviation:{entry.object_id}"))
     deviation = surface_deviation(repaired, scaled, rng=rng)

@@ -365,3 +365,21 @@ def test_float32_hulls_are_what_is_simulated_and_stored(tmp_path: Path) -> None:
         assert part.vertices is not None
         np.testing.assert_array_equal(part.vertices, part.vertices.astype(np.float32))
     assert read_benchmark(path).metadata["parameters"]["hull_float32"] is True
+
+
+def test_split_and_build_commands(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    meshes = _import_folder(
+        tmp_path / "import",
+        {"a-plank": ("A", (0.5, 0.05, 0.3)), "b-plank": ("B", (0.4, 0.06, 0.3))},
+    )
+    split = tmp_path / "split.json"
+    args = ["benchmark", "split-real", "--meshes", str(meshes), "--out", str(split), "--size", "2"]
+    assert cli_main(args) == 0
+    assert "2 benchmark and 0 training objects" in capsys.readouterr().out
+    assert read_split(split)["benchmark"] == ["a-plank", "b-plank"]
+    assert (
+        cli_main(["benchmark", "split-real", "--meshes", str(tmp_path), "--out", str(split)]) == 2
+    )
+    assert (
+        "expected a folder written by 'dg16m objects import-sweethome3d'" in capsys.readouterr().err
+    )
