@@ -591,7 +591,7 @@ def run(args: Arguments) -> int:
         raise UsageError(f"--benchmark: expected a benchmark file, found no file {args.benchmark}")
     bench = read_benchmark(args.benchmark)
     if args.meshes is None:
-        meshes = sorted(o.object_id for o in bench.objects if not o.family)
+        meshes = sorted(o.object_id for o in bench.objects if not o.family and not o.has_mesh)
         if meshes:
             raise UsageError(
                 f"{args.benchmark}: expected --meshes DIR (its objects are mesh files, e.g. "

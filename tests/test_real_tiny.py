@@ -61,3 +61,17 @@ def test_evaluators_score_a_submission_on_real_objects(tmp_path: Path) -> None:
     assert (fce.metrics["fce"]["rows"], fce.metrics["fce"]["objects"]) == (4, 2)
     assert gsr.metrics["gsr"]["rows"] == 4
     assert 0.0 <= gsr.metrics["gsr"]["rate"] <= 1.0
+
+
+def test_classifier_evaluator_on_real_objects_needs_no_mesh_folder() -> None:
+    pytest.importorskip("torch")
+    from baselines.grasp_geometry import load_checkpoint
+    from dg16m_env.evaluators import make
+
+    evaluator = make("classifier", benchmark=TINY_REAL, k=5, progress=False)
+    checkpoint = Path(__file__).parents[1] / "baselines" / "checkpoints" / "cgdf-dg16m.pt"
+    classifier, _ = load_checkpoint(checkpoint)
+    result = evaluator.evaluate(classifier)
+    assert result.metrics["gsr_top5_full"]["rows"] == 10  # top 5 of each of the 2 objects
+    assert 0.0 <= result.metrics["gsr_top5_full"]["rate"] <= 1.0
+    assert 0.0 <= result.metrics["ap_full"]["rate"] <= 1.0

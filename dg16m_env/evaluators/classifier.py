@@ -211,7 +211,9 @@ class ClassifierEvaluator(Evaluator):
         self.ref = load_benchmark_ref(benchmark, mesh_root)
         root = mesh_root if mesh_root is not None else self.ref.mesh_root
         self.mesh_root = str(root) if root is not None else None
-        meshes = [o.object_id for o in self.ref.benchmark.objects if not o.family]
+        meshes = [
+            o.object_id for o in self.ref.benchmark.objects if not o.family and not o.has_mesh
+        ]
         if meshes and self.mesh_root is None:
             raise EvaluatorError(
                 f"mesh_root: expected the mesh folder of the benchmark's {len(meshes)} mesh "
