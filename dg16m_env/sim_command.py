@@ -357,7 +357,7 @@ def _replay_benchmark(args, n_frames: int, width: int, height: int, camera) -> i
     bench = read_benchmark(args.benchmark)
     row = _check_range("--row", args.row, bench.n, "row")
     item = bench.objects[int(bench.object_index[row])]
-    if not item.family and args.meshes is None:
+    if not item.family and not item.has_mesh and args.meshes is None:
         raise SimCommandError(
             f"{item.object_id}: expected --meshes DIR holding {item.file!r} (the benchmark's "
             "object is a mesh), found none given"
