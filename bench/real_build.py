@@ -4,6 +4,8 @@ fc_pass counts, invalid nominal trials per arm, GSR per arm), from the folders t
 
     .venv/bin/python bench/real_build.py --import runs/real_meshes --build runs/real_pilot
     .venv/bin/python bench/real_build.py --import runs/real_meshes --json runs/real_numbers.json
+    # how many imported objects pass the build's screen, per category (no CoACD, no trials)
+    .venv/bin/python bench/real_build.py --import runs/real_meshes --screen --workers 2
 
 The wall time of a build is the sum of its objects' stage seconds over the worker count (the
 manifest records each object's seconds per stage; objects finished in an earlier session
@@ -15,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -22,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from dataset_gen.atomic import write_json_atomic
+from dataset_gen.sources import ObjectSource
 from dataset_gen.sweethome3d import import_summary
 
 
@@ -89,10 +93,59 @@ def build_numbers(folder: Path) -> dict[str, Any]:
     return out
 
 
+def _screen_one(item: Any, meshes: str) -> dict[str, Any]:
+    from dg16m_env.benchmark import screen_passing
+    from dg16m_env.real_benchmark import REAL_PARAMETERS
+
+    object_id, category = item
+    obj = ObjectSource(object_id, mesh=Path(meshes) / f"{object_id}.obj").load(REAL_PARAMETERS.mass)
+    start = time.perf_counter()
+    passing = screen_passing(obj, REAL_PARAMETERS)
+    return {"category": category, "passing": passing, "seconds": time.perf_counter() - start}
+
+
+def screen_numbers(meshes: Path, workers: int) -> dict[str, Any]:
+    """The build's screen (:func:`dg16m_env.benchmark.screen_passing`) on every imported object:
+    per category, how many reach the admission rule's passing pairs before the clearance rule
+    (an upper bound on what the build admits)."""
+    from dataset_gen.parallel import run_tasks
+    from dg16m_env.real_benchmark import REAL_LIMITS, REAL_SIZE, import_entries, read_split
+
+    entries = import_entries(meshes)
+    items = [
+        (k, e["source"]["category"]) for k, e in sorted(entries.items()) if e["status"] == "ok"
+    ]
+    results = {
+        item[0]: value
+        for item, value in run_tasks(_screen_one, items, (str(meshes),), workers=workers)
+    }
+    quota = {c: v["quota"] for c, v in read_split()["categories"].items()}
+    by_category: dict[str, dict[str, Any]] = {}
+    for value in results.values():
+        row = by_category.setdefault(value["category"], {"objects": 0, "pass_screen": 0})
+        row["objects"] += 1
+        row["pass_screen"] += int(value["passing"] >= REAL_LIMITS.min_passing)
+    for name, row in by_category.items():
+        row["quota"] = quota.get(name, 0)
+        row["short_by"] = max(0, row["quota"] - row["pass_screen"])
+    total = sum(r["pass_screen"] for r in by_category.values())
+    return {
+        "objects": len(results),
+        "pass_screen": total,
+        "benchmark_size": REAL_SIZE,
+        "within_quotas": sum(min(r["quota"], r["pass_screen"]) for r in by_category.values()),
+        "by_category": dict(sorted(by_category.items())),
+        "screen_seconds": _percentiles([v["seconds"] for v in results.values()]),
+        "passing": {k: v["passing"] for k, v in sorted(results.items())},
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--import", dest="imported", type=Path, default=None)
     parser.add_argument("--build", type=Path, default=None)
+    parser.add_argument("--screen", action="store_true", help="screen every imported object")
+    parser.add_argument("--workers", type=int, default=1, help="processes for --screen")
     parser.add_argument("--json", type=Path, default=None, help="also write the numbers here")
     args = parser.parse_args(argv)
     if args.imported is None and args.build is None:
@@ -101,6 +154,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.imported is not None:
         manifest = json.loads((args.imported / "manifest.json").read_text(encoding="utf-8"))
         numbers["import"] = import_summary(manifest)
+        if args.screen:
+            numbers["screen"] = screen_numbers(args.imported, args.workers)
     if args.build is not None:
         numbers["build"] = build_numbers(args.build)
     print(json.dumps(numbers, indent=2))

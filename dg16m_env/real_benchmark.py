@@ -9,8 +9,9 @@ The split (:data:`REAL_SPLIT_FILE`, shipped in the package, format ``dg16m-real-
 :func:`make_split` orders the imported objects of each catalogue category by a seeded
 permutation (``seed``) and gives each category a quota of the ``size`` benchmark objects in
 proportion to its share of the imported objects (largest remainders). The benchmark is the
-first ``quota`` objects of each category's order that the build admits; the training split is
-every other imported object that the build did not reject. Keys::
+first ``quota`` objects of each category's order that the build admits (a category that runs
+out of objects leaves its places to those with the most left, :func:`chosen_ids`); the training
+split is every other imported object that the build did not reject. Keys::
 
     {"format": "dg16m-real-split", "schema_version": 1, "source": "...", "seed": 0,
      "size": 300, "categories": {"<category>": {"quota": q, "order": [id, ...]}, ...},
@@ -159,13 +160,26 @@ def make_split(
 
 def chosen_ids(split: Mapping[str, Any]) -> list[str]:
     """The benchmark objects: per category (sorted), the first ``quota`` ids of its order that
-    are not rejected."""
-    out: list[str] = []
-    for name in sorted(split["categories"]):
-        category = split["categories"][name]
-        kept = [i for i in category["order"] if i not in split["rejected"]]
-        out.extend(kept[: category["quota"]])
-    return out
+    are not rejected. A category whose order runs out (every other object rejected) leaves its
+    unfilled places to the categories with the most objects left (ties: by name), one place at a
+    time, so the benchmark keeps its size while any object is left."""
+    rejected = split["rejected"]
+    kept = {
+        name: [i for i in category["order"] if i not in rejected]
+        for name, category in split["categories"].items()
+    }
+    take = {name: min(c["quota"], len(kept[name])) for name, c in split["categories"].items()}
+    deficit = sum(c["quota"] for c in split["categories"].values()) - sum(take.values())
+    while deficit > 0:
+        spare = {
+            name: len(kept[name]) - take[name] for name in kept if len(kept[name]) > take[name]
+        }
+        if not spare:
+            break
+        name = min(spare, key=lambda n: (-spare[n], n))
+        take[name] += 1
+        deficit -= 1
+    return [i for name in sorted(kept) for i in kept[name][: take[name]]]
 
 
 def with_membership(split: Mapping[str, Any]) -> dict[str, Any]:

@@ -383,3 +383,23 @@ def test_split_and_build_commands(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert (
         "expected a folder written by 'dg16m objects import-sweethome3d'" in capsys.readouterr().err
     )
+
+
+def test_a_category_that_runs_out_leaves_its_places_to_others() -> None:
+    split = make_split(_entries({"A": 4, "B": 4, "C": 8}), size=8, seed=0)
+    quotas = {c: v["quota"] for c, v in split["categories"].items()}
+    assert quotas == {"A": 2, "B": 2, "C": 4}
+    order_a = split["categories"]["A"]["order"]
+    split["rejected"] = {i: {"stage": "screen"} for i in order_a[:3]}  # one A left
+    chosen = chosen_ids(split)
+    assert len(chosen) == 8
+    assert [i for i in chosen if i.startswith("a-")] == [order_a[3]]
+    assert sum(i.startswith("c-") for i in chosen) == 5  # C has the most left
+    split["rejected"] = {
+        i: {"stage": "screen"} for i in [*order_a, *split["categories"]["B"]["order"]]
+    }
+    assert len(chosen_ids(split)) == 8  # all from C
+    split["rejected"].update(
+        {i: {"stage": "screen"} for i in split["categories"]["C"]["order"][:2]}
+    )
+    assert len(chosen_ids(split)) == 6  # fewer objects left than places: all of them
