@@ -15,15 +15,21 @@ traceback, never hidden.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import time
 import traceback
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from dataset_gen.errors import Dg16mError
 
 StageCallback = Callable[[str], None]
+
+WALL_FACTOR = 4.0
+"""A stage is also stopped after this many times its budget of wall time (a child that waits
+or hangs spends no CPU)."""
 
 
 class StageTimeoutError(Dg16mError, RuntimeError):
@@ -84,6 +90,15 @@ def _child(conn: Any, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
         conn.close()
 
 
+def _cpu_seconds(pid: int) -> float | None:
+    """User + system CPU seconds of a live process (Linux ``/proc``), or None elsewhere."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def run_with_budget(
     fn: Callable[..., Any],
     args: tuple[Any, ...],
@@ -92,14 +107,17 @@ def run_with_budget(
     poll_s: float = 0.5,
 ) -> BudgetedResult:
     """``fn(*args, on_stage=callback)`` in a spawned child, each stage within ``budgets[stage]``
-    seconds (stages without a budget are unlimited; the time before the first ``on_stage`` call
-    is stage ``"start"``).
+    seconds of the child's CPU time (stages without a budget are unlimited; the time before the
+    first ``on_stage`` call is stage ``"start"``). CPU time, read from ``/proc`` (wall time where
+    there is none), so that a loaded machine does not stop work a quiet one finishes; and at
+    :data:`WALL_FACTOR` times the budget in wall time, whatever the CPU. The seconds reported
+    per stage are wall seconds.
 
     Args:
         fn: a module-level function (it is pickled to the child) taking ``on_stage``.
         args: its positional arguments (picklable).
         budgets: seconds per stage name.
-        poll_s: how often the parent checks the child when no stage has a budget.
+        poll_s: how often the parent checks the child (s).
 
     Raises:
         StageTimeoutError: a stage ran past its budget (the child is killed).
@@ -117,11 +135,16 @@ def run_with_budget(
     sender.close()
     stage, started = "start", time.monotonic()
     times: dict[str, float] = {}
+
+    def spent() -> float:  # the child's CPU seconds in this stage (wall seconds without /proc)
+        cpu = _cpu_seconds(process.pid) if process.pid is not None else None
+        return time.monotonic() - started if cpu is None or cpu_start is None else cpu - cpu_start
+
+    cpu_start = _cpu_seconds(process.pid) if process.pid is not None else None
     try:
         while True:
             budget = budgets.get(stage)
-            left = poll_s if budget is None else max(0.0, started + budget - time.monotonic())
-            if receiver.poll(min(left, poll_s) if budget is not None else poll_s):
+            if receiver.poll(poll_s):
                 try:
                     kind, value = receiver.recv()
                 except EOFError:
@@ -134,6 +157,7 @@ def run_with_budget(
                 if kind == "stage":
                     times[stage] = times.get(stage, 0.0) + now - started
                     stage, started = value, now
+                    cpu_start = _cpu_seconds(process.pid) if process.pid is not None else None
                     continue
                 times[stage] = times.get(stage, 0.0) + now - started
                 process.join()
@@ -143,7 +167,9 @@ def run_with_budget(
                     value.stage_times = dict(times)  # where the time went, for the caller
                     raise value
                 raise RuntimeError(f"the worker process failed in stage {stage!r}:\n{value}")
-            if budget is not None and time.monotonic() - started >= budget:
+            if budget is not None and (
+                spent() >= budget or time.monotonic() - started >= WALL_FACTOR * budget
+            ):
                 times[stage] = time.monotonic() - started
                 raise StageTimeoutError(stage, budget, times)
             if not process.is_alive() and not receiver.poll():

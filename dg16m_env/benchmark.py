@@ -1590,9 +1590,13 @@ class BuildLimits:
         min_passing: the fewest ``fc_pass`` pairs an object must give to be built (0 = any);
             checked before the decomposition and before the trials
             (:func:`benchmark_object`).
-        decompose_s: seconds for the convex decomposition (None = no limit).
-        sample_s: seconds for sampling, pairing and force closure (and the screening).
-        label_s: seconds for the trials.
+        decompose_s: CPU seconds for the convex decomposition (None = no limit).
+        sample_s: CPU seconds for sampling, pairing and force closure (and the screening).
+        label_s: CPU seconds for the trials.
+
+    Budgets are the child process's CPU seconds (:func:`dataset_gen.budget.run_with_budget`),
+    not wall time, so that a loaded machine does not reject what a quiet one admits (and 4x the
+    budget in wall time stops a stage that waits).
 
     An object past a budget is stopped (its child process is killed) and recorded as failed
     with ``rejected: "time budget"`` and the stage; one with too few pairs with ``rejected:

@@ -88,8 +88,8 @@ random, 20 farthest pairs per object; K = 8 perturbations), 20 ``fc_robust`` pai
 pilot file's bytes)."""
 
 REAL_LIMITS = BuildLimits(min_passing=40, decompose_s=180.0, sample_s=120.0, label_s=240.0)
-"""What the real build admits: 40 passing pairs (all ``n_passing``) and, per object, 180 s of
-decomposition, 120 s of sampling and pairing and 240 s of trials on one core."""
+"""What the real build admits: 40 passing pairs (all ``n_passing``) and, per object, 180 CPU
+seconds of decomposition, 120 of sampling and pairing and 240 of trials."""
 
 
 def _category(entry: Mapping[str, Any]) -> str:

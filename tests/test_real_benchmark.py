@@ -170,8 +170,16 @@ def _staged(seconds: float, fail: str = "", *, on_stage: Any) -> str:
         raise MeshError("a broken mesh")
     if fail == "crash":
         raise KeyError("a bug")
-    time.sleep(seconds)
+    end = time.process_time() + seconds
+    while time.process_time() < end:  # burn CPU: the budgets are CPU seconds
+        pass
     return "done"
+
+
+def _sleeper(*, on_stage: Any) -> str:
+    on_stage("waiting")
+    time.sleep(60)
+    return "woke"
 
 
 def test_budget_stops_a_stage_that_runs_past_it() -> None:
@@ -180,6 +188,9 @@ def test_budget_stops_a_stage_that_runs_past_it() -> None:
         run_with_budget(_staged, (60.0,), {"slow": 1.0})
     assert e.value.stage == "slow"
     assert time.monotonic() - start < 30  # killed, not waited for
+    with pytest.raises(StageTimeoutError) as e:  # no CPU spent: stopped at 4 x in wall time
+        run_with_budget(_sleeper, (), {"waiting": 0.5})
+    assert e.value.stage == "waiting"
     done = run_with_budget(_staged, (0.0,), {"slow": 30.0})
     assert done.value == "done"
     assert set(done.times) == {"start", "quick", "slow"}
