@@ -8,8 +8,8 @@ parent kills the child when a stage runs past its budget. Compiled code (CoACD, 
 be interrupted from inside its own process; a child can always be killed.
 
 Errors the work raises on purpose (:class:`~dataset_gen.errors.Dg16mError`) come back as
-themselves, with the seconds spent in each stage as their ``stage_times``; anything else (a bug) comes back as a :class:`RuntimeError` with the child's
-traceback, never hidden.
+themselves, with the seconds spent in each stage as their ``stage_times``; anything else (a
+bug) comes back as a :class:`RuntimeError` with the child's traceback, never hidden.
 """
 
 from __future__ import annotations

@@ -120,16 +120,21 @@ def _dependencies() -> Any:
     return fast_simplification
 
 
+def _read_back(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """``mesh`` after an OBJ round trip, its normals fixed when it is not yet one volume."""
+    mesh = obj_round_trip(mesh)
+    if not is_one_volume(mesh):
+        mesh.fix_normals()
+    return mesh
+
+
 def _meshfix(vertices: np.ndarray, faces: np.ndarray) -> trimesh.Trimesh:
-    """MeshFix's repair (non-manifold edges and the holes around them) after an OBJ round trip."""
+    """MeshFix's repair (non-manifold edges and the holes around them), read back."""
     import pymeshfix
 
     fixer = pymeshfix.MeshFix(np.asarray(vertices, dtype=np.float64), np.asarray(faces, np.int32))
     fixer.repair()
-    fixed = obj_round_trip(trimesh.Trimesh(fixer.points, fixer.faces, process=True))
-    if not is_one_volume(fixed):
-        fixed.fix_normals()
-    return fixed
+    return _read_back(trimesh.Trimesh(fixer.points, fixer.faces, process=True))
 
 
 def obj_round_trip(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
@@ -209,7 +214,9 @@ def _repair_at(
     grid = mesh.voxelized(pitch=pitch).fill()
     voxel = grid.marching_cubes
     if len(voxel.faces) == 0:
-        raise MeshError(f"voxel remesh at pitch {pitch:.4g} m found no filled volume")
+        raise MeshError(
+            f"expected a filled volume from the voxel remesh at pitch {pitch:.4g} m, found none"
+        )
     voxel = trimesh.Trimesh(voxel.vertices, voxel.faces, process=True)
     voxel.apply_transform(grid.transform)  # marching cubes works in voxel indices
     voxel.fix_normals()
@@ -220,22 +227,19 @@ def _repair_at(
     smoothed_faces = len(body.faces)
     # an inset can make the two walls of a part thinner than a voxel meet (their vertices
     # then merge and the surface is no longer a volume): halve it, then drop it, there
-    inset = params.inset_fraction
     for inset in (params.inset_fraction, params.inset_fraction / 2, 0.0):
         moved = body
         if inset:
             moved = trimesh.Trimesh(
                 body.vertices - inset * pitch * body.vertex_normals, body.faces, process=False
             )
-        current = obj_round_trip(moved)
-        if not is_one_volume(current):
-            current.fix_normals()
+        current = _read_back(moved)
         if is_one_volume(current):
             break
     else:
         raise MeshError(
-            f"voxel remesh at pitch {pitch:.4g} m gave no watertight single volume "
-            f"(watertight {current.is_watertight}, bodies {current.body_count})"
+            f"expected one watertight body from the voxel remesh at pitch {pitch:.4g} m, found "
+            f"watertight {current.is_watertight}, {current.body_count} bodies"
         )
     steps = rejected = fixes = 0
     while len(current.faces) > params.target_faces:
@@ -254,9 +258,7 @@ def _repair_at(
                 target_reduction=attempt,
                 agg=aggressiveness,
             )
-            candidate = obj_round_trip(trimesh.Trimesh(vertices, new_faces, process=True))
-            if not is_one_volume(candidate):
-                candidate.fix_normals()
+            candidate = _read_back(trimesh.Trimesh(vertices, new_faces, process=True))
             if not is_one_volume(candidate):
                 fixes += 1
                 candidate = _meshfix(vertices, new_faces)

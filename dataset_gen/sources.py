@@ -17,14 +17,12 @@ from pathlib import Path
 import numpy as np
 
 from .errors import MeshError
-from .hashing import mesh_sha256
 from .objects import (
     MESH_SUFFIXES,
     GraspObject,
     clean_mesh,
     load_object,
     make_object,
-    read_mesh_arrays,
 )
 from .procedural import make_procedural_object
 
@@ -39,9 +37,8 @@ class ObjectSource:
 
     ``mesh_arrays`` ((V, 3) float64 vertices, (F, 3) faces, as
     :func:`~dataset_gen.objects.read_mesh_arrays` reads the file) stand in for the file (a
-    benchmark that carries its meshes); ``mesh.name`` then only names the object's file.
-    ``mesh_sha256`` (:func:`~dataset_gen.hashing.mesh_sha256`) is the mesh's identity: when
-    set, the arrays (given or read from the file) must hash to it, or loading fails.
+    benchmark that carries its meshes, whose hashes it checks on reading); ``mesh.name`` then
+    only names the object's file.
     """
 
     object_id: str
@@ -53,13 +50,11 @@ class ObjectSource:
     mesh_arrays: tuple[np.ndarray, np.ndarray] | None = field(
         default=None, compare=False, repr=False
     )
-    mesh_sha256: str | None = None
 
     def load(self, mass: float) -> GraspObject:
-        """Build the object (raises :class:`~dataset_gen.errors.MeshError` for broken meshes
-        and for a mesh that does not match ``mesh_sha256``)."""
-        if self.mesh_arrays is not None or (self.mesh is not None and self.mesh_sha256):
-            return self._load_checked(mass)
+        """Build the object (raises :class:`~dataset_gen.errors.MeshError` for broken meshes)."""
+        if self.mesh_arrays is not None:
+            return self._load_arrays(mass)
         if self.mesh is not None:
             return load_object(
                 self.mesh,
@@ -75,23 +70,12 @@ class ObjectSource:
             )
         return make_procedural_object(self.family, self.family_seed, mass=mass)
 
-    def _load_checked(self, mass: float) -> GraspObject:
+    def _load_arrays(self, mass: float) -> GraspObject:
+        """The object from ``mesh_arrays``, exactly as :func:`load_object` builds it from the
+        file those arrays were read from (clean, scale, centre)."""
+        assert self.mesh_arrays is not None
+        vertices, faces = self.mesh_arrays
         name = str(self.mesh) if self.mesh is not None else self.object_id
-        if self.mesh_arrays is not None:
-            vertices, faces = self.mesh_arrays
-            where = "the stored mesh"
-        else:
-            assert self.mesh is not None
-            vertices, faces = read_mesh_arrays(self.mesh)
-            where = str(self.mesh)
-        if self.mesh_sha256:
-            found = mesh_sha256(vertices, faces)
-            if found != self.mesh_sha256:
-                raise MeshError(
-                    f"{self.object_id}: expected a mesh with sha256 {self.mesh_sha256}, found "
-                    f"{found} in {where} (its bytes changed: labels made on the original mesh "
-                    "do not hold for it)"
-                )
         mesh, report = clean_mesh(vertices, faces, name=name)
         return make_object(
             mesh,

@@ -394,15 +394,15 @@ class BenchmarkObject:
 
     def source(self, mesh_root: str | os.PathLike[str] | None = None) -> ObjectSource:
         """Where the object comes from (procedural: family and seed; mesh: the mesh the file
-        carries, which must match the stored ``mesh_sha256``; for files that carry none,
-        ``mesh_root / file`` at the stored scale).
+        carries, checked against its ``mesh_sha256`` when the file was read; for files that
+        carry none, ``mesh_root / file`` at the stored scale).
 
         Raises:
             BenchmarkError: a mesh object the file does not carry and no ``mesh_root``.
         """
         if self.family:
             return ObjectSource(self.object_id, family=self.family, family_seed=self.seed)
-        if self.has_mesh:  # the object is what the file carries (its hash is checked)
+        if self.has_mesh:  # the object is what the file carries
             assert self.mesh_vertices is not None
             assert self.mesh_faces is not None
             return ObjectSource(
@@ -411,7 +411,6 @@ class BenchmarkObject:
                 scale=self.scale,
                 allow_any_size=True,
                 mesh_arrays=(self.mesh_vertices, self.mesh_faces),
-                mesh_sha256=self.mesh_sha256 or None,
             )
         if mesh_root is None:
             raise BenchmarkError(
@@ -423,14 +422,13 @@ class BenchmarkObject:
             mesh=Path(mesh_root) / self.file,
             scale=self.scale,
             allow_any_size=True,
-            mesh_sha256=self.mesh_sha256 or None,
         )
 
     def load(self, mesh_root: str | os.PathLike[str] | None = None) -> GraspObject:
         """Rebuild the :class:`GraspObject` (see :meth:`source`) at the stored mass.
 
         Raises:
-            BenchmarkError: no mesh to load, or a mesh whose hash differs from the stored one.
+            BenchmarkError: no mesh to load, or a broken one.
         """
         try:
             return self.source(mesh_root).load(self.mass)
