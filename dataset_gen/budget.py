@@ -38,20 +38,21 @@ class StageTimeoutError(Dg16mError, RuntimeError):
     Attributes:
         stage: the stage that ran out of time.
         budget: its budget (s).
-        times: seconds spent in each stage entered, in order.
+        stage_times: wall seconds spent in each stage entered, in order (the name every error
+            from :func:`run_with_budget` carries them under).
     """
 
-    def __init__(self, stage: str, budget: float, times: Mapping[str, float]) -> None:
+    def __init__(self, stage: str, budget: float, stage_times: Mapping[str, float]) -> None:
         super().__init__(
             f"expected stage {stage!r} to finish within its budget of {budget:g} s, found it "
             "still running (stopped)"
         )
         self.stage = stage
         self.budget = budget
-        self.times = dict(times)
+        self.stage_times = dict(stage_times)
 
     def __reduce__(self) -> tuple[Any, ...]:
-        return (type(self), (self.stage, self.budget, self.times))
+        return (type(self), (self.stage, self.budget, self.stage_times))
 
 
 @dataclass

@@ -1615,8 +1615,12 @@ class BuildLimits:
 
     def budgets(self) -> dict[str, float]:
         """Seconds per stage of :func:`benchmark_object` that has a budget."""
-        stages = {"decompose": self.decompose_s, "screen": self.sample_s}
-        stages.update({"sample": self.sample_s, "label": self.label_s})
+        stages = {
+            "screen": self.sample_s,
+            "decompose": self.decompose_s,
+            "sample": self.sample_s,
+            "label": self.label_s,
+        }
         return {k: float(v) for k, v in stages.items() if v is not None}
 
     def to_dict(self) -> dict[str, Any]:
@@ -1656,24 +1660,16 @@ def _object_task(
             bench, times = done.value, done.times
         else:
             bench = benchmark_object(item, params, simulator, min_passing=min_passing)
-    except StageTimeoutError as exc:
-        return {
-            "status": "failed",
-            "files": {},
-            "error": f"{item.object_id}: {exc}",
-            "rejected": "time budget",
-            "stage": exc.stage,
-            "stage_seconds": _seconds(exc.times),
-        }
-    except ObjectRejectedError as exc:
+    except (StageTimeoutError, ObjectRejectedError) as exc:
+        timeout = isinstance(exc, StageTimeoutError)
         entry = {
             "status": "failed",
             "files": {},
-            "error": str(exc),
-            "rejected": "too few passing pairs",
+            "error": f"{item.object_id}: {exc}" if timeout else str(exc),
+            "rejected": "time budget" if timeout else "too few passing pairs",
             "stage": exc.stage,
         }
-        if getattr(exc, "stage_times", None):
+        if getattr(exc, "stage_times", None):  # set by run_with_budget
             entry["stage_seconds"] = _seconds(exc.stage_times)
         return entry
     except Dg16mError as exc:  # a broken mesh or grasp file fails only its own entry

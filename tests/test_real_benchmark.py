@@ -414,3 +414,21 @@ def test_a_category_that_runs_out_leaves_its_places_to_others() -> None:
         {i: {"stage": "screen"} for i in split["categories"]["C"]["order"][:2]}
     )
     assert len(chosen_ids(split)) == 6  # fewer objects left than places: all of them
+
+
+def test_a_stage_past_its_budget_is_recorded_with_its_stage(tmp_path: Path) -> None:
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    _plank(meshes, "plank")
+    limits = BuildLimits(min_passing=TINY.n_passing, label_s=0.01)  # no trial fits in 0.01 s
+    out = tmp_path / "bench"
+    with pytest.raises(BenchmarkError, match="found all failed: plank: expected stage 'label'"):
+        build_benchmark(mesh_benchmark_sources(meshes), out, TINY, limits=limits, progress=False)
+    entry = json.loads((out / "manifest.json").read_text())["entries"]["plank"]
+    assert (entry["status"], entry["rejected"], entry["stage"]) == (
+        "failed",
+        "time budget",
+        "label",
+    )
+    assert entry["error"].startswith("plank: expected stage 'label' to finish within its budget")
+    assert {"screen", "decompose", "sample", "label"} <= set(entry["stage_seconds"])
