@@ -59,14 +59,18 @@ re-seating limit the object was built with, 0 = off; absent = 0).
 
 Mesh objects also carry (only when some object is a mesh): their meshes as read from their
 files, ``mesh_counts`` ((O, 2) int64: vertices and faces per object, 0 for procedural ones),
-``mesh_vertices`` ((sum V, 3) float64, m, the file's frame), ``mesh_faces`` ((sum F, 3) int32,
-indices into the object's own vertices) and ``mesh_sha256`` ((O,) str,
+``mesh_vertices`` ((sum V, 3) float64, m, the file's frame; or int32 multiples of
+``10**-decimals`` m, ``decimals`` its attribute, when that holds every coordinate exactly, as
+an OBJ file's fixed-point text does: read as ``multiples / 10**decimals`` in float64, with
+``mesh_negative_zeros`` (int64 flat indices, present when any) set to -0.0),
+``mesh_faces`` ((sum F, 3) int32, indices into the object's own vertices) and ``mesh_sha256`` ((O,) str,
 :func:`dataset_gen.hashing.mesh_sha256` of the arrays; "" for procedural ones; a stored mesh
 that does not hash to it is refused on reading; the carried mesh is the object, so no mesh folder
 is read for it); and their convex hulls as arrays instead of JSON (``parts`` is then ``"[]"``):
 ``hull_objects`` ((O,) int32 hulls per object), ``hull_counts`` ((H,) int32 vertices per hull)
 and ``hull_vertices`` ((sum, 3) float64, or float32 when every value is exactly a float32; m,
-object frame).
+object frame; or int32 multiples of its attribute ``grid_m`` (m) when the benchmark was built
+with ``hull_grid``, read as ``multiples * grid_m`` in float64, the vertices simulated).
 
 ``grasps/`` (N rows): ``object_index`` (int32 row of ``objects/``), ``poses`` (N, 2, 4, 4) float64
 hand poses gripper -> object frame (m, dg16m grasp frame of the Panda hand),
@@ -242,9 +246,11 @@ class BenchmarkParameters:
         decomposition: CoACD's settings for mesh objects without convex parts (None, the
             default: :class:`dataset_gen.decomposition.DecompositionParameters`' defaults); the
             parts are stored in the file, so labels never depend on a re-run of CoACD.
-        hull_float32: round a mesh object's CoACD hull vertices to float32 before anything
-            uses them (sampling, simulation), so the file stores them in half the bytes with
-            nothing lost (at most 0.1 micrometre moved at 1 m).
+        hull_grid: round a mesh object's CoACD hull vertices to multiples of this many metres
+            before anything uses them (sampling, simulation), so the file stores them exactly
+            as int32 multiples, in half float32's compressed bytes (None, the default: as
+            CoACD gave them). The real benchmark's 5e-5 m moves a vertex at most 0.025 mm
+            per axis, against hulls that stand off the mesh by ~0.8 mm (p95).
 
     ``mu``, ``mass``, ``f_high``, ``threshold``, ``min_center_distance`` and the scene's and
     protocol's friction, squeeze force and gravity default to the paper's values
@@ -268,13 +274,11 @@ class BenchmarkParameters:
     protocol: TrialProtocol = field(default_factory=TrialProtocol)
     perturbation: PerturbationSpec = field(default_factory=PerturbationSpec)
     decomposition: DecompositionParameters | None = None
-    hull_float32: bool = False
+    hull_grid: float | None = None
 
     def __post_init__(self) -> None:
-        if not isinstance(self.hull_float32, bool):
-            raise BenchmarkError(
-                f"hull_float32: expected True or False, found {self.hull_float32!r}"
-            )
+        if self.hull_grid is not None:
+            check_number("hull_grid", self.hull_grid, error=BenchmarkError)
         if self.decomposition is not None and not isinstance(
             self.decomposition, DecompositionParameters
         ):
@@ -295,7 +299,7 @@ class BenchmarkParameters:
                 "n_robust": 0,
             },
             zero_allowed=("min_center_distance", "failing_min_loss"),
-            skip=("scene", "protocol", "perturbation", "decomposition", "hull_float32"),
+            skip=("scene", "protocol", "perturbation", "decomposition", "hull_grid"),
         )
         if self.scene.friction != self.mu:
             object.__setattr__(self, "scene", replace(self.scene, friction=self.mu))
@@ -307,8 +311,8 @@ class BenchmarkParameters:
         out["scene"] = self.scene.to_dict()
         if out["n_robust"] == 0:
             del out["n_robust"]
-        if not self.hull_float32:
-            del out["hull_float32"]
+        if self.hull_grid is None:
+            del out["hull_grid"]
         if self.decomposition is None:
             del out["decomposition"]
         else:
@@ -663,7 +667,8 @@ def write_benchmark(path: str | os.PathLike[str], bench: Benchmark, *, level: in
             ],
         )
         if any(h is not None for h in hulls):
-            _write_hulls(objects, hulls, level)
+            grid = bench.metadata.get("parameters", {}).get("hull_grid")
+            _write_hulls(objects, hulls, level, grid)
         write_array(objects, "seeds", np.array([o.seed for o in bench.objects], np.int64), None)
         write_array(objects, "scales", np.array([o.scale for o in bench.objects]), None)
         write_array(objects, "masses", np.array([o.mass for o in bench.objects]), None)
@@ -714,12 +719,24 @@ def _hull_parts(obj: BenchmarkObject) -> list[np.ndarray] | None:
     return [np.asarray(p.vertices, dtype=np.float64) for p in obj.parts]
 
 
-def _write_hulls(objects: h5py.Group, hulls: Sequence[list[np.ndarray] | None], level: int) -> None:
+def _write_hulls(
+    objects: h5py.Group,
+    hulls: Sequence[list[np.ndarray] | None],
+    level: int,
+    grid: float | None = None,
+) -> None:
     per_object = np.array([0 if h is None else len(h) for h in hulls], dtype=np.int32)
     arrays = [v for h in hulls if h is not None for v in h]
     write_array(objects, "hull_objects", per_object, None)
     write_array(objects, "hull_counts", np.array([len(v) for v in arrays], dtype=np.int32), level)
     vertices = np.concatenate(arrays).reshape(-1, 3)
+    if grid is not None:
+        multiples = grid_multiples(vertices, grid)
+        fits = np.abs(multiples).max(initial=0) < 2**31
+        if fits and same_bits(on_grid(multiples, grid), vertices):  # built on the grid
+            write_array(objects, "hull_vertices", multiples.astype(np.int32), level)
+            objects["hull_vertices"].attrs.create("grid_m", np.float64(grid))
+            return
     single = vertices.astype(np.float32)
     if np.array_equal(single.astype(np.float64), vertices):  # exactly float32: half the bytes
         vertices = single
@@ -732,7 +749,15 @@ def _read_hulls(f: h5py.File, path: Path, o: int) -> list[list[ConvexPart]]:
         return [[] for _ in range(o)]
     per_object = _read(f, path, "objects/hull_objects", (o,), "i")
     counts = _read(f, path, "objects/hull_counts", (int(per_object.sum()),), "i")
-    vertices = _read(f, path, "objects/hull_vertices", (None, 3), "f")
+    vertices = _read(f, path, "objects/hull_vertices", (None, 3), "fi")
+    if vertices.dtype.kind == "i":
+        grid = f["objects/hull_vertices"].attrs.get("grid_m")
+        if grid is None or not np.isfinite(grid) or not float(grid) > 0:
+            raise BenchmarkError(
+                f"{path}: objects/hull_vertices: expected integer multiples with a positive "
+                f"'grid_m' attribute (m), found grid_m {grid!r}"
+            )
+        vertices = on_grid(vertices, float(grid))
     if per_object.min(initial=0) < 0 or counts.min(initial=4) < 4 or counts.sum() != len(vertices):
         raise BenchmarkError(
             f"{path}: objects/hull_counts: expected counts >= 4 summing to the "
@@ -768,11 +793,41 @@ def _write_meshes(objects: h5py.Group, items: Sequence[BenchmarkObject], level: 
     vertices = [o.mesh_vertices for o in items if o.mesh_vertices is not None]
     faces = [o.mesh_faces for o in items if o.mesh_faces is not None]
     write_array(objects, "mesh_counts", counts, None)
-    write_array(
-        objects, "mesh_vertices", np.concatenate(vertices).astype(np.float64).reshape(-1, 3), level
-    )
+    stacked = np.concatenate(vertices).astype(np.float64).reshape(-1, 3)
+    decimals = _decimal_places(stacked)
+    if decimals is None:
+        write_array(objects, "mesh_vertices", stacked, level)
+    else:
+        multiples = np.round(stacked * 10.0**decimals).astype(np.int32)
+        write_array(objects, "mesh_vertices", multiples, level)
+        objects["mesh_vertices"].attrs.create("decimals", np.int64(decimals))
+        negative_zeros = np.flatnonzero(np.signbit(stacked) & (stacked == 0))
+        if negative_zeros.size:  # an OBJ file's "-0.00000000": kept, for the hash
+            write_array(objects, "mesh_negative_zeros", negative_zeros.astype(np.int64), level)
     write_array(objects, "mesh_faces", np.concatenate(faces).astype(np.int32).reshape(-1, 3), level)
     _strings(objects, "mesh_sha256", [o.mesh_sha256 for o in items])
+
+
+MAX_DECIMALS = 9
+
+
+def _from_decimals(multiples: np.ndarray, decimals: int) -> np.ndarray:
+    """(V, 3) integers -> (V, 3) float64 ``multiples / 10**decimals`` (m): correctly rounded,
+    so equal to the float an OBJ file's decimal text parses to."""
+    return np.asarray(multiples, dtype=np.int64).astype(np.float64) / 10.0**decimals
+
+
+def _decimal_places(vertices: np.ndarray) -> int | None:
+    """The fewest decimal places (<= :data:`MAX_DECIMALS`) that hold every coordinate exactly
+    as an int32 multiple (a mesh read from an OBJ file's fixed-point text: 8 for trimesh's),
+    or None (stored as float64)."""
+    for decimals in range(MAX_DECIMALS + 1):
+        scaled = np.round(vertices * 10.0**decimals)
+        if np.abs(scaled).max(initial=0) >= 2**31:
+            return None
+        if same_bits(_from_decimals(scaled.astype(np.int64), decimals), vertices + 0.0):
+            return decimals  # (-0.0 + 0.0 is 0.0: negative zeros are stored apart)
+    return None
 
 
 def _read_meshes(
@@ -783,7 +838,23 @@ def _read_meshes(
     if "objects/mesh_counts" not in f:
         return [None] * o
     counts = _read(f, path, "objects/mesh_counts", (o, 2), "i")
-    vertices = _read(f, path, "objects/mesh_vertices", (None, 3), "f")
+    vertices = _read(f, path, "objects/mesh_vertices", (None, 3), "fi")
+    if vertices.dtype.kind == "i":
+        decimals = f["objects/mesh_vertices"].attrs.get("decimals")
+        if decimals is None or not 0 <= int(decimals) <= MAX_DECIMALS:
+            raise BenchmarkError(
+                f"{path}: objects/mesh_vertices: expected integer multiples with a 'decimals' "
+                f"attribute in [0, {MAX_DECIMALS}], found decimals {decimals!r}"
+            )
+        vertices = _from_decimals(vertices, int(decimals))
+        if "objects/mesh_negative_zeros" in f:
+            zeros = _read(f, path, "objects/mesh_negative_zeros", (None,), "i")
+            if zeros.size and (zeros.min() < 0 or zeros.max() >= vertices.size):
+                raise BenchmarkError(
+                    f"{path}: objects/mesh_negative_zeros: expected flat indices in "
+                    f"[0, {vertices.size}), found [{zeros.min()}, {zeros.max()}]"
+                )
+            vertices.reshape(-1)[zeros] = -0.0
     faces = _read(f, path, "objects/mesh_faces", (None, 3), "i")
     hashes = [s.decode() for s in _read(f, path, "objects/mesh_sha256", (o,), "OS")]
     if (
@@ -1296,11 +1367,28 @@ def screen_passing(obj: GraspObject, params: BenchmarkParameters) -> int:
     return int(np.sum(verdict.passed))
 
 
-def _float32_hull(part: ConvexPart) -> ConvexPart:
+def same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two float64 arrays hold the same bytes (so -0.0 differs from 0.0, as in a
+    hash)."""
+    a, b = np.ascontiguousarray(a, np.float64), np.ascontiguousarray(b, np.float64)
+    return a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+def grid_multiples(vertices: np.ndarray, grid: float) -> np.ndarray:
+    """(V, 3) vertices (m) -> (V, 3) int64 nearest multiples of ``grid`` (m)."""
+    return np.round(np.asarray(vertices, dtype=np.float64) / grid).astype(np.int64)
+
+
+def on_grid(multiples: np.ndarray, grid: float) -> np.ndarray:
+    """(V, 3) integer multiples of ``grid`` (m) -> (V, 3) float64 vertices (m); the one
+    formula both the build and the reader use, so stored hulls are the simulated ones."""
+    return np.asarray(multiples, dtype=np.int64).astype(np.float64) * grid
+
+
+def _grid_hull(part: ConvexPart, grid: float) -> ConvexPart:
     if part.kind != "mesh" or part.vertices is None:
         return part
-    rounded = part.vertices.astype(np.float32).astype(np.float64)
-    return ConvexPart("mesh", part.pose, (), rounded)
+    return ConvexPart("mesh", part.pose, (), on_grid(grid_multiples(part.vertices, grid), grid))
 
 
 def _no_stage(name: str) -> None:
@@ -1349,8 +1437,8 @@ def benchmark_object(
             )
     stage("decompose")
     parts = object_parts(obj, **params.decomposition_kwargs())
-    if params.hull_float32 and not obj.parts:
-        parts = tuple(_float32_hull(part) for part in parts)
+    if params.hull_grid is not None and not obj.parts:
+        parts = tuple(_grid_hull(part, params.hull_grid) for part in parts)
     stage("sample")
     rng = np.random.default_rng(object_seed(params.seed, f"benchmark:{obj.object_id}"))
     rows = (

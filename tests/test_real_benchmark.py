@@ -30,6 +30,7 @@ from dg16m_env.benchmark import (
     build_benchmark,
     mesh_benchmark_sources,
     read_benchmark,
+    write_benchmark,
 )
 from dg16m_env.labels import PerturbationSpec
 from dg16m_env.real_benchmark import (
@@ -236,8 +237,6 @@ def test_a_mesh_benchmark_carries_its_mesh_and_refuses_a_changed_one(
     for a, b in zip(direct, obj.parts, strict=True):
         np.testing.assert_array_equal(a.vertices, b.vertices)
     copy = path.with_name("copy.h5")
-    from dg16m_env.benchmark import write_benchmark
-
     write_benchmark(copy, bench)
     assert copy.read_bytes() == path.read_bytes()
     # the object is the mesh the file carries: a changed file on disk does not relabel it
@@ -361,21 +360,34 @@ def test_decomposition_settings_are_recorded_and_read_back() -> None:
         BenchmarkParameters.from_dict({"decomposition": {"threshold": 0.01, "bogus": 1}})
 
 
-def test_float32_hulls_are_what_is_simulated_and_stored(tmp_path: Path) -> None:
+def test_grid_hulls_are_what_is_simulated_and_stored(tmp_path: Path) -> None:
     from dataclasses import replace
 
     meshes = tmp_path / "meshes"
     meshes.mkdir()
     _plank(meshes, "plank")
-    params = replace(TINY, hull_float32=True)
+    grid = 5e-5
+    params = replace(TINY, hull_grid=grid)
     path = build_benchmark(mesh_benchmark_sources(meshes), tmp_path / "b", params, progress=False)
     with h5py.File(path, "r") as f:
-        assert f["objects/hull_vertices"].dtype == np.float32
-    obj = read_benchmark(path).objects[0]
-    for part in obj.parts:
+        stored = f["objects/hull_vertices"]
+        assert stored.dtype == np.int32
+        assert stored.attrs["grid_m"] == grid
+    bench = read_benchmark(path)
+    assert bench.metadata["parameters"]["hull_grid"] == grid
+    for part in bench.objects[0].parts:
         assert part.vertices is not None
-        np.testing.assert_array_equal(part.vertices, part.vertices.astype(np.float32))
-    assert read_benchmark(path).metadata["parameters"]["hull_float32"] is True
+        np.testing.assert_array_equal(part.vertices, np.round(part.vertices / grid) * grid)
+    # the parts read back are the parts simulated: writing them again gives the same bytes
+    again = tmp_path / "again.h5"
+    write_benchmark(again, bench)
+    assert again.read_bytes() == Path(path).read_bytes()
+    with h5py.File(path, "r+") as f:  # a grid attribute removed is refused, not guessed
+        del f["objects/hull_vertices"].attrs["grid_m"]
+    with pytest.raises(BenchmarkError, match="grid_m"):
+        read_benchmark(path)
+    with pytest.raises(BenchmarkError, match="hull_grid"):
+        BenchmarkParameters(hull_grid=-1.0)
 
 
 def test_split_and_build_commands(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -75,3 +75,54 @@ def test_classifier_evaluator_on_real_objects_needs_no_mesh_folder() -> None:
     assert result.metrics["gsr_top5_full"]["rows"] == 10  # top 5 of each of the 2 objects
     assert 0.0 <= result.metrics["gsr_top5_full"]["rate"] <= 1.0
     assert 0.0 <= result.metrics["ap_full"]["rate"] <= 1.0
+
+
+def test_meshes_are_stored_as_exact_decimals(tmp_path: Path) -> None:
+    """An OBJ file's fixed-point coordinates go to int32 multiples (negative zeros apart) and
+    come back bit for bit, so the mesh hashes hold; a file without the scale is refused."""
+    import h5py
+
+    from dg16m_env.benchmark import BenchmarkError, write_benchmark
+
+    bench = read_benchmark(TINY_REAL)
+    path = tmp_path / "again.h5"
+    write_benchmark(path, bench)
+    with h5py.File(path, "r") as f:
+        assert f["objects/mesh_vertices"].dtype == np.int32
+        assert f["objects/mesh_vertices"].attrs["decimals"] == 8
+        assert len(f["objects/mesh_negative_zeros"]) > 0  # this file has some "-0.00000000"
+    again = read_benchmark(path)
+    for a, b in zip(bench.objects, again.objects, strict=True):
+        assert a.mesh_vertices is not None
+        assert b.mesh_vertices is not None
+        assert a.mesh_vertices.tobytes() == b.mesh_vertices.tobytes()
+        assert a.mesh_sha256 == b.mesh_sha256
+    broken = tmp_path / "broken.h5"
+    broken.write_bytes(path.read_bytes())
+    with h5py.File(broken, "r+") as f:
+        del f["objects/mesh_negative_zeros"]
+    with pytest.raises(BenchmarkError, match="mesh bytes were changed"):
+        read_benchmark(broken)
+    with h5py.File(broken, "r+") as f:
+        del f["objects/mesh_vertices"].attrs["decimals"]
+    with pytest.raises(BenchmarkError, match="decimals"):
+        read_benchmark(broken)
+
+
+def test_a_mesh_off_any_decimal_grid_stays_float64(tmp_path: Path) -> None:
+    import dataclasses
+
+    import h5py
+
+    from dg16m_env.benchmark import write_benchmark
+
+    bench = read_benchmark(TINY_REAL)
+    obj = bench.objects[0]
+    assert obj.mesh_vertices is not None
+    moved = obj.mesh_vertices + np.pi * 1e-12  # no longer a short decimal
+    objects = [dataclasses.replace(obj, mesh_vertices=moved), *bench.objects[1:]]
+    path = tmp_path / "float.h5"
+    write_benchmark(path, dataclasses.replace(bench, objects=objects))
+    with h5py.File(path, "r") as f:
+        assert f["objects/mesh_vertices"].dtype == np.float64
+        np.testing.assert_array_equal(f["objects/mesh_vertices"][: len(moved)], moved)
