@@ -21,17 +21,9 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/dg16m objects make --count 20 --seed 0 --out $(DEMO)/objects
-	$(BIN)/dg16m objects show $(DEMO)/objects --out $(DEMO)/objects.png --limit 20
-	$(BIN)/dg16m grippers
-	$(BIN)/dg16m benchmark info --plot $(DEMO)/benchmark.png
-	$(BIN)/dg16m sim replay --row 1 --out $(DEMO)/replay.png
-	$(BIN)/dg16m baselines submissions --out $(DEMO)/submissions --strategies benchmark_fc_pass --no-progress
-	$(BIN)/dg16m evaluate $(DEMO)/submissions/benchmark_fc_pass.h5 --evaluators fce --workers 2 --out $(DEMO)/fce.json --no-progress
-	$(BIN)/python scripts/leaderboard_baselines.py --db $(DEMO)/leaderboard/board.db --evaluators fce --strategies benchmark_fc_pass --workers 2 --no-progress
-	$(BIN)/dg16m leaderboard show --db $(DEMO)/leaderboard/board.db
-	$(BIN)/dg16m leaderboard render --db $(DEMO)/leaderboard/board.db --out $(DEMO)/leaderboard/site
-	@echo "demo outputs in $(DEMO)/: objects/ (meshes, parts, manifest.json), objects.png, benchmark.png, replay.png, submissions/, fce.json, leaderboard/ (board.db, site/index.html)"
+	# the main job end to end (objects, grasps, a labelled benchmark, two baselines scored,
+	# a local leaderboard and its page); prints each step's command and where everything is
+	$(BIN)/dg16m demo --out $(DEMO) --workers 2
 
 test: $(STAMP)
 	# the page tests' browser; the real furniture library (the importer's tests)
