@@ -9,7 +9,8 @@ restarts ``mujoco.rollout`` at every phase (:func:`~dg16m_env.trial.trial_segmen
 the solver without a warm start, and the replay clears ``qacc_warmstart`` at the same steps.
 
 :func:`trial_frames` renders frames of a replayed trial with ``mujoco.Renderer`` (a free camera
-looking at the object, both hands fixed in the world), each with a caption
+looking across the line between the two hands, :func:`hands_view`, so both are in view; both
+hands fixed in the world), each with a caption
 ``"t=1.20 s  force+y  slip 3.1 mm"``: time, phase and the object's displacement at the hands' grasp
 centres (the slip measured by the protocol: from the start during *close*, from the end of
 *close* after it). :func:`write_strip` writes frames side by side (a grid for more than four) to
@@ -279,6 +280,52 @@ def default_camera(scene: Scene, data: mujoco.MjData | None = None) -> mujoco.Mj
     return camera
 
 
+HAND_REACH = 0.12
+"""How far (m) a Panda hand extends from its grasp centre, for framing both hands."""
+
+
+def hands_view(scene: Scene, dual_grasp: np.ndarray) -> dict[str, Any]:
+    """Camera overrides of :func:`default_camera` that show both hands of one dual grasp.
+
+    The camera looks across the horizontal line between the two hands' grasp centres (so
+    neither hand stands behind the other), from the side of the object the hands are on
+    (their mean offset from the object's centre; the default azimuth's side when they are
+    balanced), at :data:`DEFAULT_ELEVATION`; it looks at the middle of the object and the
+    hands and stands back far enough to hold both (:data:`HAND_REACH` around each centre).
+
+    Args:
+        dual_grasp: (2, 4, 4) hand poses, gripper -> object frame (m); the object starts at the
+            world origin.
+
+    Returns:
+        ``lookat`` (3,) m, ``distance`` m, ``azimuth`` degrees.
+    """
+    grasp = check_dual_grasps(np.asarray(dual_grasp)[None])
+    centres = grasp_centres(scene, grasp)[0]
+    data = mujoco.MjData(scene.model)
+    mujoco.mj_setState(scene.model, data, initial_state(scene), STATE_SPEC)
+    mujoco.mj_kinematics(scene.model, data)
+    centre, radius = _object_bounds(scene, data)
+    across = centres[1, :2] - centres[0, :2]
+    default = math.radians(DEFAULT_AZIMUTH)
+    forward = np.array([math.cos(default), math.sin(default)])  # camera -> scene, horizontal
+    if np.linalg.norm(across) > 1e-6:
+        normal = np.array([-across[1], across[0]]) / np.linalg.norm(across)
+        side = float(np.dot(centres[:, :2].mean(axis=0) - centre[:2], normal))
+        # the camera stands on the hands' side: it looks towards -side along the normal
+        sign = -np.sign(side) if abs(side) > 1e-6 else np.sign(np.dot(forward, normal)) or 1.0
+        forward = sign * normal
+    points = np.vstack([centre, centres])
+    lookat = (points.min(axis=0) + points.max(axis=0)) / 2.0
+    reach = np.linalg.norm(centres - lookat, axis=1).max() + HAND_REACH
+    extent = max(radius + float(np.linalg.norm(centre - lookat)), reach)
+    return {
+        "lookat": lookat,
+        "distance": DISTANCE_FACTOR * extent,
+        "azimuth": math.degrees(math.atan2(forward[1], forward[0])),
+    }
+
+
 def _camera(scene: Scene, camera: mujoco.MjvCamera | Mapping[str, Any] | None) -> mujoco.MjvCamera:
     if isinstance(camera, mujoco.MjvCamera):
         return camera
@@ -464,6 +511,8 @@ def replay_trial(
     """:func:`step_trial` then render it (frames as :func:`trial_frames` describes)."""
     check_size(width, height)
     stepped = step_trial(scene, dual_grasp, protocol)
+    if not isinstance(camera, mujoco.MjvCamera):  # both hands in view unless told otherwise
+        camera = {**hands_view(scene, dual_grasp), **dict(camera or {})}
     steps = frame_steps(stepped, n_frames)
     frames = render_states(scene, stepped, steps, width=width, height=height, camera=camera)
     return Replay(stepped, frames, [caption(stepped, k) for k in steps], steps)

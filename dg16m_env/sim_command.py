@@ -162,7 +162,8 @@ def register(subparsers: Any) -> None:
         "--view",
         default=None,
         metavar="AZ,EL",
-        help="camera azimuth,elevation in degrees (default: 135,-25)",
+        help="camera azimuth,elevation in degrees (default: looking across the line between "
+        "the two hands, from their side, elevation -25)",
     )
     output.add_argument("--fps", type=float, default=10.0, help="GIF frame rate (default: 10)")
     replay.set_defaults(handler=_replay)

@@ -451,3 +451,28 @@ def test_cli_run_on_the_release_airplane_explains_the_invalid_trials(
     assert "hand0 penetrates" in out
     assert "poses are for the robotiq_2f85 hand" in out
     assert "--coacd-threshold" in out
+
+
+def test_the_default_view_shows_both_hands(scene: Scene, bench: Benchmark) -> None:
+    """The camera looks across the line between the hands (neither behind the other), from the
+    hands' side, with both grasp centres inside its field of view."""
+    from dg16m_env.replay import DEFAULT_ELEVATION, hands_view
+    from dg16m_env.trial import grasp_centres
+
+    fovy = float(scene.model.vis.global_.fovy)
+    for row in range(bench.n):
+        view = hands_view(scene, bench.poses[row])
+        az, el = np.radians(view["azimuth"]), np.radians(DEFAULT_ELEVATION)
+        forward = np.array([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)])
+        position = view["lookat"] - view["distance"] * forward
+        centres = grasp_centres(scene, bench.poses[row][None])[0]
+        across = centres[1, :2] - centres[0, :2]
+        assert abs(np.dot(forward[:2], across)) <= 1e-9 + 1e-9 * np.linalg.norm(across)
+        for centre in centres:
+            ray = centre - position
+            angle = np.degrees(np.arccos(np.dot(ray, forward) / np.linalg.norm(ray)))
+            assert angle < fovy / 2, (row, angle)
+        side = np.dot(centres[:, :2].mean(axis=0), [-across[1], across[0]])
+        camera_side = np.dot(position[:2], [-across[1], across[0]])
+        if abs(side) > 1e-3:
+            assert np.sign(side) == np.sign(camera_side)
