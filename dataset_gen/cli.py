@@ -17,9 +17,12 @@ by package). A plugin that cannot be imported or whose ``register`` fails is rep
 by its entry-point name and value, and the other commands keep working.
 
 Exit status: 0 on success; ``dg16m`` without arguments prints this help and exits 0; errors
-caused by input (:class:`~dataset_gen.errors.Dg16mError`) print one line and exit 2 (so do
-argparse's usage errors); a command may return 1 for a finished run with failures (it says
-which); 130 on Ctrl-C; a closed output pipe (``dg16m ... | head``) ends quietly with 141, as a
+caused by input (:class:`~dataset_gen.errors.Dg16mError`, and the operating system's errors about
+a path the user gave, :data:`PATH_ERRORS`: a file where a folder must go, a missing file) print
+one line and exit 2 (so do argparse's usage errors): a path that is missing or that cannot be
+read as the expected kind of file is bad input for every command; a command returns 1 when it
+read its input and finished with failures it lists (a run with failed objects, meshes that fail
+``objects check``, a submission with problems); 130 on Ctrl-C; a closed output pipe (``dg16m ... | head``) ends quietly with 141, as a
 process killed by SIGPIPE. Anything else is a bug and keeps its traceback.
 """
 
@@ -204,9 +207,37 @@ def _run(argv: list[str]) -> int:
     except Dg16mError as exc:
         print(f"dg16m {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except PATH_ERRORS as exc:  # a path the user gave that is not what the command needs
+        print(f"dg16m {args.command}: error: {path_error_message(exc)}", file=sys.stderr)
+        return EXIT_USAGE
     except KeyboardInterrupt:
         print(f"dg16m {args.command}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+PATH_ERRORS = (
+    FileExistsError,
+    NotADirectoryError,
+    IsADirectoryError,
+    PermissionError,
+    FileNotFoundError,
+)
+"""Errors of the operating system about a path, which a command reports as bad input."""
+
+
+def path_error_message(exc: OSError) -> str:
+    """One line for an operating-system error about a path: what was expected, what was found."""
+    where = exc.filename if exc.filename is not None else "a path"
+    reason = exc.strerror or type(exc).__name__
+    if isinstance(exc, FileExistsError):
+        return f"{where}: expected a folder or nothing there, found a file ({reason})"
+    if isinstance(exc, NotADirectoryError):
+        return f"{where}: expected a folder, found a file on the way ({reason})"
+    if isinstance(exc, IsADirectoryError):
+        return f"{where}: expected a file, found a folder ({reason})"
+    if isinstance(exc, PermissionError):
+        return f"{where}: expected a path this user may use, found it forbidden ({reason})"
+    return f"{where}: expected it to exist, found nothing there ({reason})"
 
 
 def _stdout_is_broken() -> bool:

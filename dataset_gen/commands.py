@@ -439,6 +439,9 @@ def _objects_check(args: argparse.Namespace) -> int:
     from dataset_gen.objects import load_object
 
     mass = check_number("--mass", args.mass, error=MeshError)
+    missing = [str(p) for p in args.meshes if not Path(p).is_file()]
+    if missing:  # nothing to check: bad input (exit 2), as for every command
+        raise MeshError(f"expected mesh files, found nothing at {', '.join(missing)}")
     failures = 0
     for path in args.meshes:
         try:

@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import h5py
 import matplotlib.image
 import numpy as np
 import pytest
@@ -27,6 +28,7 @@ SUBCOMMANDS = [
     "evaluate",
     "submission",
     "baselines",
+    "demo",
 ]
 
 
@@ -69,6 +71,7 @@ def test_console_script_help_lists_every_subcommand() -> None:
         ["submission", "validate"],
         ["submission", "make"],
         ["baselines", "submissions"],
+        ["demo"],
     ],
 )
 def test_each_subcommand_has_help_with_examples(
@@ -156,6 +159,49 @@ def test_input_errors_exit_2_with_one_line(
     assert main(["objects", "make", "--count", "0", "--out", str(tmp_path / "z")]) == 2
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["generate", "--procedural", "1", "--out", "{file}"],
+        ["objects", "make", "--count", "1", "--out", "{file}"],
+        ["objects", "make", "--count", "1", "--out", "{file}/inside"],
+    ],
+)
+def test_an_output_path_that_is_a_file_is_bad_input(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str]
+) -> None:
+    """No traceback: one line saying a folder was expected, exit 2, the file left as it was."""
+    file = tmp_path / "readme.txt"
+    file.write_text("mine")
+    assert main([a.replace("{file}", str(file)) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "expected a folder" in err
+    assert "Traceback" not in err
+    assert file.read_text() == "mine"
+
+
+def test_input_that_cannot_be_read_exits_2_for_every_command(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    truncated = tmp_path / "truncated.h5"
+    with h5py.File(tmp_path / "whole.h5", "w") as f:
+        f.create_dataset("x", data=np.zeros(10_000))
+    truncated.write_bytes((tmp_path / "whole.h5").read_bytes()[:1000])
+    for argv in (
+        ["objects", "check", str(tmp_path / "missing.obj")],
+        ["inspect", str(tmp_path / "missing.h5")],
+        ["inspect", str(truncated)],
+        ["submission", "validate", str(tmp_path / "missing.h5")],
+        ["submission", "validate", str(truncated)],
+        ["submission", "validate", str(tmp_path)],
+    ):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.startswith(f"dg16m {argv[0]}: error:"), err
+        assert "expected" in err
+
+
 def test_parser_is_built_from_command_modules() -> None:
     parser = build_parser()
     args = parser.parse_args(["grippers"])
@@ -218,6 +264,7 @@ def test_commands_come_from_the_entry_point_group_in_a_stable_order() -> None:
         "dataset_gen.generate_command:register",
         "dataset_gen.verify_command:register",
         "baselines.commands:register",
+        "baselines.demo:register",
         "dg16m_env.benchmark_command:register",
         "dg16m_env.evaluate_command:register",
         "dg16m_env.sim_command:register",
@@ -227,7 +274,8 @@ def test_commands_come_from_the_entry_point_group_in_a_stable_order() -> None:
     names = list(parser._subparsers._group_actions[0].choices)  # help order
     assert names == [
         *SUBCOMMANDS[:4],
-        *("generate", "stats", "verify", "baselines", "reproduce", "benchmark", "evaluate"),
+        *("generate", "stats", "verify", "baselines", "reproduce", "demo", "benchmark"),
+        "evaluate",
         *("submission", "sim"),
         "leaderboard",
     ]
