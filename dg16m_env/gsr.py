@@ -41,7 +41,9 @@ class GraspJob:
     """The dual grasps of one object.
 
     Attributes:
-        source: where the object comes from (procedural id or mesh file).
+        source: where the object comes from: an :class:`~dataset_gen.sources.ObjectSource`
+            (a mesh file or a procedural family and seed), or a procedural object id such as
+            ``"table-1000000"`` (made into its source).
         poses: (N, 2, 4, 4) hand poses, Panda grasp frame -> object frame (m).
         parts: convex parts to simulate (default: the object's own, or a cached CoACD
             decomposition for meshes).
@@ -52,6 +54,25 @@ class GraspJob:
     poses: np.ndarray
     parts: tuple[ConvexPart, ...] | None = None
     mass: float = PAPER.mass
+
+    def __post_init__(self) -> None:
+        if isinstance(self.source, str):
+            from dataset_gen.procedural import ProceduralError, parse_object_id
+
+            try:
+                family, seed = parse_object_id(self.source)
+            except ProceduralError as exc:
+                raise GsrError(
+                    f"source: expected an ObjectSource or a procedural object id, found "
+                    f"{self.source!r} ({exc}); a mesh is ObjectSource(object_id, mesh=path)"
+                ) from None
+            source = ObjectSource(object_id=self.source, family=family, family_seed=seed)
+            object.__setattr__(self, "source", source)
+        elif not isinstance(self.source, ObjectSource):
+            raise GsrError(
+                "source: expected an ObjectSource or a procedural object id like "
+                f"'table-1000000', found {type(self.source).__name__}"
+            )
 
     @property
     def object_id(self) -> str:

@@ -69,6 +69,7 @@ __all__ = [
     "EMBEDDED",
     "FORMAT",
     "SCHEMA_VERSION",
+    "PartialSubmissionWarning",
     "Problem",
     "Submission",
     "SubmissionError",
@@ -267,7 +268,9 @@ def write_submission(
     """Write a submission file atomically (float64 poses and scores, uncompressed).
 
     The values are written as given (no finiteness or rigidity check): validate the result with
-    :func:`validate_submission`.
+    :func:`validate_submission`. A file for the shipped benchmark (``"embedded"``) that holds
+    only some of its objects is written with a :class:`PartialSubmissionWarning` saying how to
+    score a few objects instead (the evaluators refuse it).
 
     Args:
         path: the file to write.
@@ -321,7 +324,39 @@ def write_submission(
             g.create_dataset("poses", data=p)
             if s is not None:
                 g.create_dataset("scores", data=s)
+    if benchmark == EMBEDDED:
+        _warn_if_partial(path, set(arrays))
     return path
+
+
+class PartialSubmissionWarning(UserWarning):
+    """A submission written for the shipped benchmark that leaves some of its objects out."""
+
+
+def _embedded_ids() -> frozenset[str]:
+    from dg16m_env.benchmark import EMBEDDED_BENCHMARK
+
+    with h5py.File(EMBEDDED_BENCHMARK, "r") as f:
+        return frozenset(s.decode() for s in f["objects/ids"][()])
+
+
+def _warn_if_partial(path: Path, written: set[str]) -> None:
+    """Say so when a shipped-benchmark submission holds only some of its objects (all of them
+    the benchmark's): the validator refuses it, so it cannot be scored as written."""
+    import warnings
+
+    expected = _embedded_ids()
+    if not written or not written <= expected or written == expected:
+        return
+    warnings.warn(
+        f"{path}: expected dual grasps for all {len(expected)} objects of the shipped benchmark, "
+        f"found {len(written)}; the evaluators refuse a submission that leaves objects out "
+        "(each would count as a failure). To score a few objects, build a small benchmark of "
+        "them ('dg16m benchmark build --limit N --out DIR') and write the submission with "
+        "benchmark=<its sha256> (dg16m_env.evaluators.load_benchmark_ref(DIR/benchmark.h5).sha256)",
+        PartialSubmissionWarning,
+        stacklevel=3,
+    )
 
 
 # --------------------------------------------------------------------------------------------

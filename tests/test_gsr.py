@@ -88,3 +88,13 @@ def test_duplicate_ids_and_missing_sources_are_rejected(jobs: list[GraspJob]) ->
         evaluate_objects([jobs[0], jobs[0]])
     with pytest.raises(GsrError, match="expected a source"):
         jobs_from_mapping({"nope": np.eye(4)[None, None].repeat(2, 1)}, {})
+
+
+def test_a_job_takes_a_procedural_id_or_a_source() -> None:
+    job = GraspJob("table-1000000", np.zeros((0, 2, 4, 4)))
+    assert job.source == procedural_sources([("table", 1000000)])[0]
+    assert job.object_id == "table-1000000"
+    with pytest.raises(GsrError, match="expected an ObjectSource or a procedural object id"):
+        GraspJob("chair", np.zeros((0, 2, 4, 4)))
+    with pytest.raises(GsrError, match="found int"):
+        GraspJob(3, np.zeros((0, 2, 4, 4)))  # type: ignore[arg-type]

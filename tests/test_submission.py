@@ -863,3 +863,21 @@ def test_submission_from_real_dg16m(real_data: Path, tmp_path: Path) -> None:
     np.testing.assert_array_equal(same["dg16m_airplane"], poses["dg16m_airplane"])
     path = write_submission(tmp_path / "s.h5", poses, scores=scores)
     assert validate_submission(path, object_ids=["dg16m_airplane"]) == []
+
+
+def test_a_partial_submission_for_the_shipped_benchmark_says_how_to_score_a_few(
+    tmp_path: Path,
+) -> None:
+    import warnings
+
+    from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark
+    from dg16m_env.submission import PartialSubmissionWarning
+
+    ids = [o.object_id for o in read_benchmark(EMBEDDED_BENCHMARK).objects]
+    with pytest.warns(PartialSubmissionWarning, match=r"all 300 objects.*found 3.*--limit N"):
+        path = write_submission(tmp_path / "three.h5", {i: rigid() for i in ids[:3]})
+    assert path.is_file()  # written all the same (a user may mean it)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        write_submission(tmp_path / "all.h5", {i: rigid(1) for i in ids})
+        write_submission(tmp_path / "small.h5", {i: rigid() for i in ids[:3]}, benchmark=SHA)
