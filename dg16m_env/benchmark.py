@@ -111,12 +111,18 @@ from typing import Any
 
 import h5py
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from dataset_gen.atomic import atomic_path
 from dataset_gen.budget import StageTimeoutError, run_with_budget
 from dataset_gen.checks import check_fields, check_integer, check_number, known_fields
 from dataset_gen.clearance import collision_parts
-from dataset_gen.decomposition import DecompositionParameters, decomposition_report, object_parts
+from dataset_gen.decomposition import (
+    MIN_RELATIVE_HULL_VOLUME,
+    DecompositionParameters,
+    decomposition_report,
+    object_parts,
+)
 from dataset_gen.errors import Dg16mError, MeshError
 from dataset_gen.force_closure import evaluate
 from dataset_gen.gripper import get_gripper
@@ -250,7 +256,8 @@ class BenchmarkParameters:
             before anything uses them (sampling, simulation), so the file stores them exactly
             as int32 multiples, in half float32's compressed bytes (None, the default: as
             CoACD gave them). The real benchmark's 5e-5 m moves a vertex at most 0.025 mm
-            per axis, against hulls that stand off the mesh by ~0.8 mm (p95).
+            per axis, against hulls that stand off the mesh by ~0.8 mm (p95); a sliver hull
+            the grid flattens to no volume is left out (:func:`grid_parts`).
 
     ``mu``, ``mass``, ``f_high``, ``threshold``, ``min_center_distance`` and the scene's and
     protocol's friction, squeeze force and gravity default to the paper's values
@@ -1385,10 +1392,39 @@ def on_grid(multiples: np.ndarray, grid: float) -> np.ndarray:
     return np.asarray(multiples, dtype=np.int64).astype(np.float64) * grid
 
 
-def _grid_hull(part: ConvexPart, grid: float) -> ConvexPart:
+def _grid_hull(part: ConvexPart, grid: float, min_volume: float) -> ConvexPart | None:
+    """``part`` with its vertices on the grid, or None when that flattens it (a sliver thinner
+    than the grid) to no volume above ``min_volume`` (m^3), as CoACD's own output is filtered
+    (:data:`dataset_gen.decomposition.MIN_RELATIVE_HULL_VOLUME`)."""
     if part.kind != "mesh" or part.vertices is None:
         return part
-    return ConvexPart("mesh", part.pose, (), on_grid(grid_multiples(part.vertices, grid), grid))
+    rounded = on_grid(grid_multiples(part.vertices, grid), grid)
+    try:
+        volume = ConvexHull(rounded).volume
+    except (QhullError, ValueError):  # flat or collinear once on the grid
+        return None
+    if not volume > min_volume:
+        return None
+    return ConvexPart("mesh", part.pose, (), rounded)
+
+
+def grid_parts(
+    parts: Sequence[ConvexPart], grid: float, mesh_vertices: np.ndarray
+) -> tuple[ConvexPart, ...]:
+    """A mesh's CoACD hulls on the grid (m), without those it flattens (:func:`_grid_hull`).
+
+    Raises:
+        BenchmarkError: every hull flattened.
+    """
+    box_volume = float(np.prod(np.ptp(np.asarray(mesh_vertices, dtype=np.float64), axis=0)))
+    min_volume = MIN_RELATIVE_HULL_VOLUME * box_volume
+    kept = tuple(p for p in (_grid_hull(part, grid, min_volume) for part in parts) if p is not None)
+    if not kept:
+        raise BenchmarkError(
+            f"hull_grid {grid}: expected some convex hulls with volume on the grid, found "
+            f"all {len(parts)} flattened"
+        )
+    return kept
 
 
 def _no_stage(name: str) -> None:
@@ -1438,7 +1474,7 @@ def benchmark_object(
     stage("decompose")
     parts = object_parts(obj, **params.decomposition_kwargs())
     if params.hull_grid is not None and not obj.parts:
-        parts = tuple(_grid_hull(part, params.hull_grid) for part in parts)
+        parts = grid_parts(parts, params.hull_grid, obj.mesh.vertices)
     stage("sample")
     rng = np.random.default_rng(object_seed(params.seed, f"benchmark:{obj.object_id}"))
     rows = (

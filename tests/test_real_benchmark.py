@@ -444,3 +444,17 @@ def test_a_stage_past_its_budget_is_recorded_with_its_stage(tmp_path: Path) -> N
     )
     assert entry["error"].startswith("plank: expected stage 'label' to finish within its budget")
     assert {"screen", "decompose", "sample", "label"} <= set(entry["stage_seconds"])
+
+
+def test_the_grid_leaves_out_the_slivers_it_flattens() -> None:
+    from dataset_gen.objects import ConvexPart
+    from dg16m_env.benchmark import grid_parts
+
+    box = np.array([[x, y, z] for x in (0, 0.1) for y in (0, 0.1) for z in (0, 0.1)])
+    sliver = box * [1e-5, 1, 1] + [0.2, 0, 0]  # 0.01 mm thick: one plane on a 0.05 mm grid
+    parts = [ConvexPart("mesh", np.eye(4), (), v) for v in (box, sliver)]
+    kept = grid_parts(parts, 5e-5, np.vstack([box, sliver]))
+    assert len(kept) == 1
+    np.testing.assert_array_equal(kept[0].vertices, np.round(box / 5e-5) * 5e-5)
+    with pytest.raises(BenchmarkError, match="all 1 flattened"):
+        grid_parts(parts[1:], 5e-5, sliver)
