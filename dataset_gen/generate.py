@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
@@ -36,6 +36,7 @@ from .force_closure import ForceClosureResult
 from .io import (
     DualGraspSet,
     package_version,
+    read_manifest,
     write_dg16m,
 )
 from .objects import ConvexPart, GraspObject
@@ -359,6 +360,43 @@ def no_pairs_reason(counts: dict[str, int], params: GenerationParameters) -> str
     )
 
 
+def source_kind(source: ObjectSource) -> str:
+    """``"procedural"`` or ``"mesh"``: what a dataset entry was made from."""
+    return "procedural" if source.mesh is None and source.mesh_arrays is None else "mesh"
+
+
+def _entry_kind(entry: Mapping[str, Any]) -> str | None:
+    """What an existing entry was made from (entries before the ``source`` field: a procedural
+    object's folder stores its mesh; a failed entry says nothing)."""
+    if "source" in entry:
+        return str(entry["source"])
+    if entry.get("status") != "ok":
+        return None
+    return "procedural" if "mesh" in entry.get("files", {}) else "mesh"
+
+
+def check_same_sources(out: Path, sources: Sequence[ObjectSource]) -> None:
+    """Refuse to add objects of one kind (procedural, meshes) to a dataset of the other.
+
+    Raises:
+        GenerationError: ``out`` holds entries of the other kind.
+    """
+    path = out / "manifest.json"
+    if not path.is_file() or not sources:
+        return
+    entries = read_manifest(out)["entries"]
+    wanted = {source_kind(s) for s in sources}
+    found = {_entry_kind(e) for e in entries.values()} - {None}
+    other = found - wanted
+    if other:
+        count = sum(_entry_kind(e) in other for e in entries.values())
+        raise GenerationError(
+            f"{out}: expected a dataset of {' and '.join(sorted(wanted))} objects to add to, "
+            f"found {count} {' and '.join(sorted(other))} objects in it (one dataset holds one "
+            "kind; use another --out)"
+        )
+
+
 def _task(source: ObjectSource, out: str, params: GenerationParameters) -> dict[str, Any]:
     """Load, generate and write one object; returns its manifest entry.
 
@@ -366,11 +404,12 @@ def _task(source: ObjectSource, out: str, params: GenerationParameters) -> dict[
     file is written, and a rerun tries it again).
     """
     relative = f"{GRASPS_FOLDER}/{source.object_id}.h5"
+    kind = source_kind(source)
     try:
         obj = source.load(params.mass)
         data = generate_object(obj, params, object_file=source.object_file)
     except Dg16mError as exc:  # a broken mesh (or an unusable object) fails only its own entry
-        return {"status": "failed", "files": {}, "error": str(exc)}
+        return {"status": "failed", "files": {}, "error": str(exc), "source": kind}
     counts = data.metadata["counts"]
     if data.n == 0:
         return {
@@ -378,6 +417,7 @@ def _task(source: ObjectSource, out: str, params: GenerationParameters) -> dict[
             "files": {},
             "error": no_pairs_reason(counts, params),
             "counts": counts,
+            "source": kind,
         }
     files = {"grasps": relative}
     if source.mesh is None:  # procedural: store the mesh so the folder is self-contained
@@ -386,6 +426,7 @@ def _task(source: ObjectSource, out: str, params: GenerationParameters) -> dict[
     write_dg16m(Path(out) / relative, data)
     return {
         "status": "ok",
+        "source": kind,
         "files": files,
         "pairs": data.n,
         "passing": int(data.passing_indices.size),
@@ -419,8 +460,9 @@ def generate_dataset(
 
     Raises:
         GenerationError: bad arguments, duplicate ids, or ``out`` holds a dataset made with
-            other parameters.
+            other parameters or of the other kind of objects (procedural or meshes).
     """
+    check_same_sources(Path(out), sources)
     return run_resumable(
         _task,
         sources,

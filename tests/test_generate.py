@@ -82,6 +82,32 @@ def test_rerun_skips_finished_objects_and_rejects_other_parameters(tmp_path: Pat
         generate_dataset(sources, tmp_path, GenerationParameters(n_grasps=61), progress=False)
 
 
+def test_meshes_are_not_merged_into_a_procedural_dataset(tmp_path: Path) -> None:
+    """One dataset holds one kind of object: adding the other kind is refused, with nothing in
+    the folder changed; the entries say which kind made them (older ones are inferred)."""
+    out = tmp_path / "ds"
+    manifest = generate_dataset(procedural_sources(SPECS[:1]), out, SMALL, progress=False)
+    assert manifest["entries"]["table-0000000"]["source"] == "procedural"
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    make_procedural_object("ladder", 1).mesh.export(meshes / "ladder.obj")
+    before = {p: p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+    with pytest.raises(GenerationError, match=r"expected a dataset of mesh objects.*1 procedural"):
+        generate_dataset(mesh_sources(meshes), out, SMALL, progress=False)
+    assert {p: p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()} == before
+    # a manifest written before entries named their kind: inferred from the stored mesh
+    import json
+
+    path = out / "manifest.json"
+    old = json.loads(path.read_text())
+    del old["entries"]["table-0000000"]["source"]
+    path.write_text(json.dumps(old))
+    with pytest.raises(GenerationError, match="1 procedural"):
+        generate_dataset(mesh_sources(meshes), out, SMALL, progress=False)
+    mine = generate_dataset(mesh_sources(meshes), tmp_path / "m", SMALL, progress=False)
+    assert mine["entries"]["ladder"]["source"] == "mesh"
+
+
 def test_kill_9_then_resume_gives_the_same_bytes(tmp_path: Path) -> None:
     reference = tmp_path / "reference"
     generate_dataset(procedural_sources(SPECS), reference, SMALL, progress=False)
