@@ -784,9 +784,9 @@ def run_predictor(
                 run.poses[object_id] = outcome[0]
                 if outcome[1] is not None:
                     run.scores[object_id] = outcome[1]
-            if bar is not None:
+            if bar is not None:  # one refresh per object (a log shows each update once)
+                bar.set_postfix(failed=len(run.errors), refresh=False)
                 bar.update(1)
-                bar.set_postfix(failed=len(run.errors))
         worker.close()
     finally:
         worker.stop()

@@ -105,6 +105,11 @@ def hangs(obs):
     return poses(obs)
 
 
+def slow(obs):
+    time.sleep(0.3)  # longer than a progress bar's refresh interval
+    return poses(obs)
+
+
 def crashes(obs):
     if obs["object_id"] == "b":
         os._exit(3)
@@ -422,3 +427,13 @@ def test_submission_from_predictor(module_file: Path, tmp_path: Path) -> None:
         pytest.skip("dg16m_env.submission.validate_submission is not there yet")
     problems = validate(out, object_ids=ref.object_ids, benchmark_sha256=ref.sha256, embedded=False)
     assert problems == []
+
+
+def test_the_progress_bar_shows_each_object_once(
+    module_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """In a log (stderr not a terminal), one line per object, not one per update and postfix."""
+    run_predictor(spec(module_file, "slow"), observations("abc"), progress=True)
+    lines = capsys.readouterr().err.replace("\r", "\n").splitlines()
+    for done in (1, 2):
+        assert sum(f"| {done}/3 " in line for line in lines) == 1, lines
