@@ -296,3 +296,27 @@ def test_real_airplane_mesh_matches_the_release_frame(real_data: Path) -> None:
         contacts = handle["grasps/contact_points"][:200].reshape(-1, 3)
     _, distance, _ = trimesh.proximity.closest_point(obj.mesh, contacts)
     assert distance.max() < 1e-9  # stored contacts lie on the mesh translated by -centroid
+
+
+def test_contact_sheet_tick_labels_do_not_touch() -> None:
+    """Each small 3D view's tick labels stand apart (they ran together at five ticks a side)."""
+    from dataset_gen.figures import new_figure
+    from dataset_gen.procedural import make_procedural_object
+    from dataset_gen.render import _setup_axes
+
+    fig = new_figure(3.0, 3.0)
+    ax = fig.add_subplot(1, 1, 1, projection="3d")
+    _setup_axes(ax, make_procedural_object("bench", 0).mesh, None, (25.0, -60.0))
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        lo, hi = sorted(axis.get_view_interval())
+        shown = [
+            t
+            for t, at in zip(axis.get_ticklabels(), axis.get_majorticklocs(), strict=True)
+            if lo <= at <= hi and t.get_text()
+        ]
+        boxes = [t.get_window_extent(renderer) for t in shown]
+        assert 2 <= len(boxes) <= 4
+        for i, a in enumerate(boxes):
+            assert not any(a.overlaps(b) for b in boxes[i + 1 :]), a
