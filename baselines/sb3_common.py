@@ -18,14 +18,45 @@ from dg16m_env.evaluators import EvaluationResult
 A = TypeVar("A")
 
 
-def parse_args(cls: type[A], description: str) -> A:
-    """The dataclass ``cls`` filled from ``--field-name value`` flags (defaults: its own)."""
-    parser = argparse.ArgumentParser(description=description)
+def field_docs(cls: type) -> dict[str, str]:
+    """The attribute docstrings of a dataclass (the string under each field, CleanRL style),
+    one line each."""
+    import ast
+    import inspect
+    import itertools
+    import textwrap
+
+    try:
+        tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
+    except (OSError, TypeError):  # no source (e.g. defined in a REPL)
+        return {}
+    body = tree.body[0].body if tree.body and isinstance(tree.body[0], ast.ClassDef) else []
+    docs: dict[str, str] = {}
+    for node, after in itertools.pairwise(body):
+        if (
+            isinstance(node, ast.AnnAssign)
+            and isinstance(node.target, ast.Name)
+            and isinstance(after, ast.Expr)
+            and isinstance(after.value, ast.Constant)
+            and isinstance(after.value.value, str)
+        ):
+            docs[node.target.id] = " ".join(after.value.value.split())
+    return docs
+
+
+def parse_args(cls: type[A], description: str, argv: list[str] | None = None) -> A:
+    """The dataclass ``cls`` filled from ``--field-name value`` flags (defaults: its own), each
+    flag described by its field's docstring and default."""
+    parser = argparse.ArgumentParser(description=" ".join(description.split()))
+    docs = field_docs(cls)
     for field in dataclasses.fields(cls):  # type: ignore[arg-type]
         flag = "--" + field.name.replace("_", "-")
         kind = _boolean if isinstance(field.default, bool) else type(field.default)
-        parser.add_argument(flag, type=kind, default=field.default, help=field.name)
-    return cls(**vars(parser.parse_args()))
+        text = docs.get(field.name, field.name).replace("%", "%%")
+        parser.add_argument(
+            flag, type=kind, default=field.default, help=f"{text} (default: %(default)s)"
+        )
+    return cls(**vars(parser.parse_args(argv)))
 
 
 def _boolean(text: str) -> bool:

@@ -43,21 +43,33 @@ ENV_ID = "dg16m_env/DualGraspLift-v0"
 @dataclass
 class Args:
     seed: int = 0
+    """seed of the training environments, the policy and the evaluation episodes"""
     total_timesteps: int = 300_000
+    """environment steps of PPO training"""
     n_envs: int = 8
+    """environments stepped together (one vectorised env)"""
     learning_rate: float = 3e-4
+    """Adam learning rate"""
     n_steps: int = 256
+    """steps per environment in each PPO rollout"""
     batch_size: int = 512
+    """PPO minibatch size"""
     n_epochs: int = 10
+    """PPO epochs per rollout"""
     gamma: float = 0.99
+    """discount factor"""
     ent_coef: float = 0.0
+    """entropy bonus coefficient"""
     eval_episodes: int = 100
+    """seeded evaluation episodes after training (the policy evaluator)"""
     eval_seed: int = 100_000
+    """first seed of the evaluation episodes (apart from the training seeds)"""
     out: Path = Path("runs/sb3_lift")
+    """output folder: model, learning curve, results"""
 
 
 def main() -> None:
-    args = parse_args(Args, __doc__.splitlines()[0])
+    args = parse_args(Args, __doc__.split("\n\n")[0])
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env
 

@@ -42,18 +42,27 @@ ENV_ID = "dg16m_env/DualGraspPose-v0"
 @dataclass
 class Args:
     seed: int = 0
+    """seed of the training environment, the policy and the evaluation episodes"""
     total_timesteps: int = 10_000
+    """environment steps of SAC training (one step = one episode)"""
     learning_rate: float = 3e-4
+    """Adam learning rate"""
     batch_size: int = 256
+    """SAC minibatch size"""
     learning_starts: int = 1_000
+    """random steps collected before learning starts"""
     n_points: int = 64
+    """points of the object's cloud in each observation"""
     eval_episodes: int = 200
+    """seeded evaluation episodes after training (the policy evaluator)"""
     eval_seed: int = 100_000
+    """first seed of the evaluation episodes (apart from the training seeds)"""
     out: Path = Path("runs/sb3_pose")
+    """output folder: model, learning curve, results"""
 
 
 def main() -> None:
-    args = parse_args(Args, __doc__.splitlines()[0])
+    args = parse_args(Args, __doc__.split("\n\n")[0])
     from stable_baselines3 import SAC
     from stable_baselines3.common.env_util import make_vec_env
 

@@ -57,16 +57,21 @@ class Args:
     level: str = "full"
     """success level: "full" (all 12 disturbances) or "gravity\""""
     learning_rate: float = 1e-3
+    """Adam learning rate"""
     n_steps: int = 256
     """steps per environment per PPO update"""
     batch_size: int = 256
+    """PPO minibatch size"""
     n_epochs: int = 10
+    """PPO epochs per rollout"""
     ent_coef: float = 0.01
+    """entropy bonus coefficient"""
     eval_episodes: int = 400
     """evaluation episodes on the held-out objects (simulated trials)"""
     eval_seed: int = 100_000
     """first reset seed of the evaluation episodes"""
     out: Path = Path("runs/sb3_select")
+    """output folder: model, learning curve, results"""
 
 
 def candidate_scorer_class() -> type:
@@ -120,7 +125,7 @@ class SelectForPolicy(gym.ObservationWrapper):
 
 
 def main() -> None:
-    args = parse_args(Args, __doc__.splitlines()[0])
+    args = parse_args(Args, __doc__.split("\n\n")[0])
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env
 

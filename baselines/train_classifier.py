@@ -58,19 +58,27 @@ class Args:
     data: Path = Path("runs/train200")
     """a 'dg16m generate --split train' folder"""
     out: Path = Path("runs/classifiers")
+    """output folder: checkpoint, learning curve, history, results"""
     limit: int = 0
     """use the first N objects only (0: all)"""
     val_fraction: float = 0.1
+    """fraction of the objects held out for validation"""
     objects_per_batch: int = 8
+    """objects per training batch"""
     grasps_per_object: int = 32
+    """grasps per object in a batch (half positives, half negatives)"""
     steps: int = 6000
+    """Adam steps at most (or until time_budget_s)"""
     time_budget_s: float = 900.0
     """stop training after this many seconds even if steps remain"""
     learning_rate: float = 1e-3
+    """Adam learning rate"""
     eval_every: int = 250
+    """steps between validation loss and ROC AUC measurements"""
     val_grasps: int = 256
     """grasps per held-out object in each validation (a fixed seeded subset)"""
     seed: int = 0
+    """seed of the split, the batches and the initial weights"""
     threads: int = 1
     """torch threads (the shipped checkpoints were trained with 1, two runs side by side)"""
     k: int = 10
@@ -155,7 +163,7 @@ def plot_history(path: Path, history: list[dict[str, Any]], title: str) -> None:
 
 
 def main(args: Args | None = None) -> dict[str, Any]:
-    args = args or parse_args(Args, __doc__.splitlines()[0])
+    args = args or parse_args(Args, __doc__.split("\n\n")[0])
     import torch
 
     from baselines.grasp_geometry import save_checkpoint

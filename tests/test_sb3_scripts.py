@@ -49,3 +49,33 @@ def test_script_writes_checkpoint_curve_and_results(tmp_path: Path, module, argv
         assert 0.0 <= rate["rate"] <= 1.0
     assert (out / "learning_curve.png").stat().st_size > 10_000
     assert list(out.glob("*.zip"))
+
+
+@pytest.mark.parametrize(
+    "module",
+    [
+        "baselines.sb3_lift",
+        "baselines.sb3_pose",
+        "baselines.sb3_select",
+        "baselines.train_classifier",
+    ],
+)
+def test_every_option_is_described_with_its_default(module: str) -> None:
+    """--help says what each option means (its field's docstring) and its default, not only its
+    own name again."""
+    import dataclasses
+    import importlib
+
+    from baselines.sb3_common import field_docs
+
+    args = importlib.import_module(module).Args
+    docs = field_docs(args)
+    assert set(docs) == {f.name for f in dataclasses.fields(args)}
+    assert all(docs.values())
+    for name, doc in docs.items():
+        assert doc != name
+    result = subprocess.run(
+        [sys.executable, "-m", module, "--help"], capture_output=True, text=True, check=True
+    )
+    assert "(default: " in result.stdout
+    assert "\n  --out OUT             out\n" not in result.stdout
