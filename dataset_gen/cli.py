@@ -96,10 +96,12 @@ def add_command(
     Every package's command module builds its parsers with this, so all commands look alike.
     ``examples`` is a block of indented command lines shown under "examples:" in ``--help``.
     """
+    # argparse %-formats help strings but not descriptions: "95%%" in either reads "95%"
+    text = (description or help_text).replace("%%", "%")
     return subparsers.add_parser(
         name,
         help=help_text,
-        description=textwrap.fill(description or help_text, 88),
+        description=textwrap.fill(text, 88),
         epilog="examples:\n" + examples,
         formatter_class=argparse.RawDescriptionHelpFormatter,
         **kwargs,
