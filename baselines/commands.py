@@ -1,8 +1,10 @@
 """``dg16m baselines submissions``: the reference submissions of the pairing baselines.
 
-The logic lives in :mod:`baselines.reference_submissions`; this module holds only the command
-line (the same arguments serve ``python -m baselines.reference_submissions``). Heavy imports
-happen inside the handler so that ``dg16m --help`` stays fast.
+The logic lives in :mod:`baselines.reference_submissions` and :mod:`baselines.reproduce`; this
+module holds only the command line and sits above them: it imports them, nothing they import
+imports it (the arguments shared with ``python -m baselines.reference_submissions`` live in
+:mod:`baselines.submission_arguments`). Heavy imports happen inside the handlers so that
+``dg16m --help`` stays fast.
 """
 
 from __future__ import annotations
@@ -11,11 +13,9 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from baselines.submission_arguments import DEFAULT_STRATEGIES, add_submission_arguments
 from dataset_gen.cli import add_command
 from dg16m_env.evaluate_command import add_benchmark_arguments
-
-DEFAULT_STRATEGIES = ("random", "farthest", "force_closure", "benchmark_fc_pass")
-"""The reference submissions written by default, one file ``<name>.h5`` each."""
 
 BASELINES_EXAMPLES = (
     "  dg16m baselines submissions --out runs/reference --workers 2\n"
@@ -172,51 +172,20 @@ def run_reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_submission_arguments(parser: argparse.ArgumentParser) -> None:
-    """The arguments of ``dg16m baselines submissions`` (also
-    ``python -m baselines.reference_submissions``)."""
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument(
-        "--k", type=int, default=10, help="dual grasps per object and baseline (default 10)"
-    )
-    parser.add_argument("--seed", type=int, default=0, help="global seed (default 0)")
-    parser.add_argument("--workers", type=int, default=1, help="local processes (default 1)")
-    add_benchmark_arguments(parser)
-    parser.add_argument(
-        "--strategies",
-        default=",".join(DEFAULT_STRATEGIES),
-        help=f"comma-separated baselines (default {','.join(DEFAULT_STRATEGIES)})",
-    )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
 def run_submissions(args: argparse.Namespace) -> int:
     """Handler of ``dg16m baselines submissions``: 0 when every file is written, 1 when some
-    baseline failed on some object (its file is not written; the others are)."""
-    import time
+    baseline failed on some object (see :func:`baselines.reference_submissions.run_submissions`;
+    imported here, in the handler, so that ``dg16m --help`` stays fast)."""
+    from baselines import reference_submissions
 
-    from baselines.reference_submissions import (
-        ReferenceSubmissionError,
-        parse_strategies,
-        write_reference_submissions,
-    )
+    return reference_submissions.run_submissions(args)
 
-    start = time.perf_counter()
-    try:
-        paths = write_reference_submissions(
-            args.out,
-            benchmark=args.benchmark,
-            mesh_root=args.mesh_root,
-            k=args.k,
-            seed=args.seed,
-            workers=args.workers,
-            strategies=parse_strategies(args.strategies),
-            progress=not args.no_progress,
-        )
-    except ReferenceSubmissionError as exc:
-        print(exc)
-        return 1
-    for name, path in paths.items():
-        print(f"wrote {path}  ({name})")
-    print(f"{len(paths)} submissions in {time.perf_counter() - start:.1f} s")
-    return 0
+
+__all__ = [
+    "DEFAULT_STRATEGIES",
+    "add_submission_arguments",
+    "register",
+    "register_reproduce",
+    "run_reproduce",
+    "run_submissions",
+]

@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -35,8 +36,8 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from baselines.commands import DEFAULT_STRATEGIES, add_submission_arguments, run_submissions
 from baselines.pairing import PAIRING_STRATEGIES, BaselineError, PairingBaseline
+from baselines.submission_arguments import DEFAULT_STRATEGIES, add_submission_arguments
 from dataset_gen.checks import check_integer
 from dataset_gen.errors import Dg16mError
 from dataset_gen.io import package_version
@@ -243,6 +244,31 @@ def write_reference_submissions(
     return written
 
 
+def run_submissions(args: argparse.Namespace) -> int:
+    """Run the parsed arguments of :func:`~baselines.submission_arguments.add_submission_arguments`
+    (``dg16m baselines submissions`` and :func:`main`): 0 when every file is written, 1 when some
+    baseline failed on some object (its file is not written; the others are)."""
+    start = time.perf_counter()
+    try:
+        paths = write_reference_submissions(
+            args.out,
+            benchmark=args.benchmark,
+            mesh_root=args.mesh_root,
+            k=args.k,
+            seed=args.seed,
+            workers=args.workers,
+            strategies=parse_strategies(args.strategies),
+            progress=not args.no_progress,
+        )
+    except ReferenceSubmissionError as exc:
+        print(exc)
+        return 1
+    for name, path in paths.items():
+        print(f"wrote {path}  ({name})")
+    print(f"{len(paths)} submissions in {time.perf_counter() - start:.1f} s")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m baselines.reference_submissions --out DIR [--k] [--seed] [--workers]
     [--benchmark] [--mesh-root] [--strategies] [--no-progress]``; returns the exit status
@@ -262,12 +288,14 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 __all__ = [
+    "DEFAULT_STRATEGIES",
     "STORED_STRATEGIES",
     "STRATEGIES",
     "ReferenceSubmissionError",
     "parse_strategies",
     "predict_object",
     "reference_baselines",
+    "run_submissions",
     "stored_fc_pass",
     "write_reference_submissions",
 ]

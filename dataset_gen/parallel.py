@@ -22,6 +22,13 @@ Item = TypeVar("Item")
 Result = TypeVar("Result")
 
 
+RAY_MAX_RETRIES = 3
+"""Ray re-runs a task whose worker or node died up to this many times (Ray's default, stated
+here because the results depend on it: every task is a pure function of its item and writes its
+files atomically, so a re-run writes the same bytes). An exception raised by the task itself is
+never retried."""
+
+
 class HasObjectId(Protocol):
     @property
     def object_id(self) -> str: ...
@@ -102,7 +109,7 @@ def _ray(
         else:
             ray.init(address=address, include_dashboard=False, log_to_driver=False)
     try:
-        remote = ray.remote(task)
+        remote = ray.remote(max_retries=RAY_MAX_RETRIES)(task)
         refs = {remote.remote(item, *args): item for item in items}
         waiting = list(refs)
         while waiting:
@@ -136,7 +143,9 @@ def run_resumable(
     ``root/manifest.json`` (of ``kind``, made with ``parameters``) records one entry per object id
     as each task returns it; an object is finished when its entry is ``ok`` and all its files
     exist, so a rerun after an interruption does only the rest. Temporary files left in
-    ``folders`` by killed atomic writes are removed first.
+    ``folders`` by killed atomic writes are removed first, and again once every task returned
+    (on Ray a task whose node died is retried on another node; its killed attempt may have left
+    one).
 
     Raises:
         ``error``: bad worker count or backend, duplicate ids, or ``root`` holds a manifest of
@@ -162,10 +171,7 @@ def run_resumable(
             )
     else:
         manifest = new_manifest(kind, dict(parameters))
-    for folder in folders:
-        if (root / folder).is_dir():
-            for stale in (root / folder).glob(".*.tmp-*"):
-                stale.unlink()
+    remove_stale_temporaries(root, folders)
 
     def finished(object_id: str) -> bool:
         entry = manifest["entries"].get(object_id)
@@ -200,5 +206,25 @@ def run_resumable(
     finally:
         if bar is not None:
             bar.close()
+    # Every task of this run has returned. On Ray a worker killed mid-write (its node lost) left
+    # its temporary file behind and the task was retried elsewhere: remove what the killed
+    # attempts left, so that the folder holds exactly what a run without a loss writes.
+    remove_stale_temporaries(root, folders)
     manifest["entries"] = dict(sorted(manifest["entries"].items()))
     return manifest
+
+
+def remove_stale_temporaries(root: Path, folders: Sequence[str]) -> list[Path]:
+    """Remove the ``.<name>.tmp-*`` files that killed atomic writes
+    (:mod:`dataset_gen.atomic`) left in ``root/<folder>``; returns what was removed.
+
+    Called by :func:`run_resumable` before its tasks start and after they all returned: no
+    write of the run is in progress then.
+    """
+    removed = []
+    for folder in folders:
+        if (root / folder).is_dir():
+            for stale in sorted((root / folder).glob(".*.tmp-*")):
+                stale.unlink(missing_ok=True)
+                removed.append(stale)
+    return removed

@@ -1,7 +1,9 @@
 """The trial protocol on MuJoCo Warp: one object's trials stepped together as Warp worlds.
 
-Same scene, same protocol, same judge as the C path (:mod:`dg16m_env.trial`); only the stepping
-moves to MuJoCo Warp (optional extra ``warp``; :class:`~dg16m_env.simulator.Simulator`):
+Same scene, same protocol, same judge as the C path (:mod:`dg16m_env.trial_protocol`, run by
+:func:`dg16m_env.trial.run_trials`, which picks this engine for ``simulator="warp"``; this module
+imports the protocol, never the module that chooses the engine); only the stepping moves to
+MuJoCo Warp (optional extra ``warp``; :class:`~dg16m_env.simulator.Simulator`):
 
 * The compiled :class:`~dg16m_env.scene.Scene` model goes to the device once per object
   (``mujoco_warp.put_model``); a batch of up to :attr:`Simulator.worlds` trials becomes one
@@ -9,16 +11,19 @@ moves to MuJoCo Warp (optional extra ``warp``; :class:`~dg16m_env.simulator.Simu
   once; the object's wrench schedule (the same for every trial of an object) lives on the device
   and a kernel writes step ``t``'s wrench before each step.
 * Phases run as in :func:`dg16m_env.trial._run_batch`: one segment per phase
-  (:func:`~dg16m_env.trial.trial_segments`), every segment starting from the previous one's last
-  state with the solver's warm start cleared (as each ``mujoco.rollout`` call does on the CPU).
+  (:func:`~dg16m_env.trial_protocol.trial_segments`), every segment starting from the previous
+  one's last state with the solver's warm start cleared (as each ``mujoco.rollout`` call does on
+  the CPU).
 * **Measured on the device**: after each step a kernel (``warp_kernels.measure``) computes what
   the judge needs (:data:`MEASURES`: time, slip at the hands' grasp centres, rotation, a
   finiteness flag, the object's speed, the deepest contact, each hand's contact count), the
-  float32 twin of :func:`~dg16m_env.trial.measure_steps`; the host reads eight numbers per world
-  and step instead of whole states, turns them into :class:`~dg16m_env.trial.StepMeasures` with
-  the same :func:`~dg16m_env.trial.step_measures` and judges them with the same
-  :func:`~dg16m_env.trial.out_steps` and :func:`~dg16m_env.trial.judge`. (Measuring whole
-  trajectories on the host runs at about 650 trials/s on one core: it would cap a GPU.)
+  float32 twin of :func:`~dg16m_env.trial_protocol.measure_steps`; the host reads eight numbers
+  per world and step instead of whole states, turns them into
+  :class:`~dg16m_env.trial_protocol.StepMeasures` with the same
+  :func:`~dg16m_env.trial_protocol.step_measures` and judges them with the same
+  :func:`~dg16m_env.trial_protocol.out_steps` and :func:`~dg16m_env.trial_protocol.judge`.
+  (Measuring whole trajectories on the host runs at about 650 trials/s on one core: it would cap
+  a GPU.)
 * **Early exit**: a trial that left the protocol in a phase is not run further. When the
   trials still running fill at most :data:`COMPACT_BELOW` of the worlds, they move to a smaller
   ``Data`` (their state copied from the host); otherwise the decided worlds keep stepping and are
@@ -48,7 +53,7 @@ import numpy as np
 
 from dg16m_env.scene import Scene
 from dg16m_env.simulator import Simulator, SimulatorError, import_warp
-from dg16m_env.trial import (
+from dg16m_env.trial_protocol import (
     CONTROL_SPEC,
     STATE_SPEC,
     Schedule,
@@ -71,7 +76,7 @@ log = logging.getLogger(__name__)
 
 MEASURES = ("time", "displacement", "rotation", "finite", "speed", "depth", "hand0", "hand1")
 """What the device measures after every step, per world (``warp_kernels.measure``): the inputs
-of :func:`dg16m_env.trial.step_measures`."""
+of :func:`dg16m_env.trial_protocol.step_measures`."""
 MEASURE_COLUMN = {name: k for k, name in enumerate(MEASURES)}
 _IDENTITY_WXYZ = np.array([1.0, 0.0, 0.0, 0.0])
 
