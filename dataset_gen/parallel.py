@@ -3,12 +3,20 @@
 Both backends call the same top-level function ``task(item, *args)``; the caller records each
 result by object id, so the outcome never depends on completion order. Used by the generator
 (:mod:`dataset_gen.generate`) and the packages built on it (e.g. the simulation benchmark).
+
+Ctrl-C stops a run promptly: the local pool's workers are terminated at once (a task cut short
+leaves at most a temporary file, removed by the next run; its object is done again), and an
+interrupt that lands where Python ignores exceptions (a weakref callback, a ``__del__``) is
+remembered and raised after the task it interrupted (:func:`run_resumable`).
 """
 
 from __future__ import annotations
 
+import signal
+import threading
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Literal, Protocol, TypeVar
 
@@ -81,7 +89,8 @@ def run_tasks(
 def _pool(
     task: Callable[..., Result], items: Sequence[Item], args: tuple[Any, ...], workers: int
 ) -> Iterator[tuple[Item, Result]]:
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    pool = ProcessPoolExecutor(max_workers=workers)
+    try:
         pending: dict[Future[Result], Item] = {}
         queue = list(items)
         while queue or pending:
@@ -91,6 +100,50 @@ def _pool(
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
                 yield pending.pop(future), future.result()
+    except BaseException:  # Ctrl-C, an error, or the caller stopped reading: stop now
+        stop_pool(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def stop_pool(pool: ProcessPoolExecutor, timeout_s: float = 5.0) -> None:
+    """Cancel what has not started and terminate the workers, without waiting for the tasks
+    they run (``shutdown(wait=True)`` would let each finish, and write its files, first)."""
+    workers = getattr(pool, "_processes", None)  # CPython's worker processes: pid -> Process
+    processes = list(workers.values()) if isinstance(workers, dict) else []
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        if process.is_alive():
+            process.terminate()
+    for process in processes:
+        process.join(timeout_s)
+
+
+@contextmanager
+def remembered_interrupts() -> Iterator[Callable[[], bool]]:
+    """While inside, Ctrl-C raises ``KeyboardInterrupt`` as usual and is also remembered; the
+    callable says whether one came. A loop checks it between tasks, so an interrupt that Python
+    swallowed (raised inside a weakref callback or ``__del__``: "Exception ignored in ...")
+    still stops the run. Only in the main thread and with Python's own SIGINT handler in place;
+    elsewhere nothing changes."""
+    previous = signal.getsignal(signal.SIGINT)
+    if (
+        threading.current_thread() is not threading.main_thread()
+        or previous is not signal.default_int_handler
+    ):
+        yield lambda: False
+        return
+    seen: list[int] = []
+
+    def handler(signum: int, frame: Any) -> None:
+        seen.append(signum)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield lambda: bool(seen)
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _ray(
@@ -194,15 +247,20 @@ def run_resumable(
             smoothing=0.05,
         )
     try:
-        for item, entry in run_tasks(
-            task, todo, args, workers=workers, backend=backend, address=address
-        ):
-            manifest["entries"][item.object_id] = entry
-            write_manifest(root, manifest)  # sorted keys: the bytes do not depend on order
-            if on_entry is not None:
-                on_entry(item.object_id, entry)
-            if bar is not None:
-                bar.update(1)
+        with remembered_interrupts() as interrupted:
+            results = run_tasks(task, todo, args, workers=workers, backend=backend, address=address)
+            try:
+                for item, entry in results:
+                    manifest["entries"][item.object_id] = entry
+                    write_manifest(root, manifest)  # sorted keys: the bytes do not depend on order
+                    if on_entry is not None:
+                        on_entry(item.object_id, entry)
+                    if bar is not None:
+                        bar.update(1)
+                    if interrupted():  # a Ctrl-C that Python swallowed during the task
+                        raise KeyboardInterrupt
+            finally:
+                results.close()  # stops a pool at once (its workers are terminated)
     finally:
         if bar is not None:
             bar.close()

@@ -1,0 +1,99 @@
+"""Ctrl-C on a run (dataset_gen.parallel): the pool stops without finishing its tasks, and an
+interrupt Python swallowed during a task still stops the run after it."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from dataset_gen.errors import Dg16mError
+from dataset_gen.io import read_manifest
+from dataset_gen.parallel import run_resumable
+
+
+@dataclass(frozen=True)
+class Item:
+    object_id: str
+
+
+def _swallowing_task(item: Item) -> dict[str, object]:
+    """Receives Ctrl-C where Python ignores it (as in a weakref callback), then returns."""
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.2)
+    except KeyboardInterrupt:
+        pass
+    return {"status": "ok", "files": {}}
+
+
+def test_an_interrupt_swallowed_during_a_task_stops_the_run_after_it(tmp_path: Path) -> None:
+    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        pytest.skip("SIGINT is not Python's default handler in this process")
+    items = [Item(f"o{i}") for i in range(4)]
+    with pytest.raises(KeyboardInterrupt):
+        run_resumable(
+            _swallowing_task,
+            items,
+            (),
+            root=tmp_path,
+            kind="grasps",
+            parameters={},
+            folders=(),
+            error=Dg16mError,
+        )
+    assert list(read_manifest(tmp_path)["entries"]) == ["o0"]  # recorded, then stopped
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back
+
+
+POOL_SCRIPT = """
+import sys, time
+from dataclasses import dataclass
+from pathlib import Path
+from dataset_gen.errors import Dg16mError
+from dataset_gen.parallel import run_resumable
+
+@dataclass(frozen=True)
+class Item:
+    object_id: str
+
+def task(item, root):
+    (Path(root) / f"started-{item.object_id}").touch()
+    time.sleep(600)  # a long object: Ctrl-C must not wait for it
+    return {"status": "ok", "files": {}}
+
+root = sys.argv[1]
+run_resumable(task, [Item(f"o{i}") for i in range(4)], (root,), root=Path(root), kind="grasps",
+              parameters={}, folders=(), error=Dg16mError, workers=2)
+"""
+
+
+def test_ctrl_c_stops_a_pool_without_waiting_for_its_tasks(tmp_path: Path) -> None:
+    script = tmp_path / "run.py"
+    script.write_text(textwrap.dedent(POOL_SCRIPT))
+    root = tmp_path / "out"
+    root.mkdir()
+    process = subprocess.Popen(
+        [sys.executable, str(script), str(root)], stderr=subprocess.PIPE, text=True
+    )
+    try:
+        for _ in range(600):  # both workers have started a task (bounded: 60 s)
+            if len(list(root.glob("started-*"))) >= 2:
+                break
+            time.sleep(0.1)
+        assert len(list(root.glob("started-*"))) >= 2
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=60)  # before the fix: the tasks' 600 s
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert "KeyboardInterrupt" in err
+    assert len(list(root.glob("started-*"))) == 2  # nothing else started after the signal
+    assert not (root / "manifest.json").exists()  # no object was recorded as done
