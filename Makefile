@@ -7,7 +7,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 DEMO   := runs/demo
 
-.PHONY: setup demo test test-all test-warp lint format clean
+.PHONY: setup demo test test-all test-warp lint format clean docs
 
 setup: $(STAMP)
 
@@ -39,6 +39,12 @@ test-all: $(STAMP)
 test-warp: $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[warp]'
 	$(BIN)/python -m pytest -q -m warp tests/test_warp.py
+
+# The documentation site (docs/, Sphinx + MyST + furo): warnings are errors; the pages of the
+# environments, the API reference and the command line are generated from the code. Open
+# docs/_build/html/index.html. Pictures of trials: MUJOCO_GL=egl $(BIN)/python scripts/docs_pictures.py
+docs: $(STAMP)
+	$(BIN)/sphinx-build -W --keep-going -b html -d docs/_build/doctrees docs docs/_build/html
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
