@@ -1,0 +1,385 @@
+"""Sample-and-rank dual-grasp predictors that see only a point cloud (issue 27).
+
+A :class:`CloudPredictor` is a predictor ``observation -> (poses (K, 2, 4, 4), scores (K,))`` for
+``dg16m evaluate --predictor`` (:mod:`dg16m_env.predictor`). Per object it
+
+1. takes the cloud: ``view="full"`` the observation's own ``points`` / ``normals`` (2048 points on
+   the whole surface); ``view="partial"`` what ``n_cameras`` seeded depth cameras see
+   (:func:`camera_cloud`);
+2. samples antipodal dual-grasp candidates on the cloud alone
+   (:func:`baselines.cloud_grasps.cloud_dual_candidates`; at most ``sampler.max_pairs``); when
+   none is found (thin walls, e.g. crates), once more with the hand's clearance set to 0;
+3. checks each candidate for force closure on the cloud's own contacts and normals
+   (``force_closure=True``, the default: :func:`dataset_gen.pairing.score_pairs` with the
+   paper's parameters, the check the dataset's labels come from) and ranks them:
+   ``ranker="cgdf"`` / ``"pointnetgpd"`` by a trained classifier's logit
+   (``baselines/checkpoints/<ranker>-dg16m.pt`` unless ``checkpoint`` names another file; the
+   classifier is given the same cloud the candidates came from), ``"random"`` by seeded uniform
+   scores (the random-rank control: the same candidates), ``"reversed"`` by the classifier's
+   negated logit (a control for tests: it must do worse);
+4. returns the ``k`` best with their scores: the candidates that pass the cloud check first,
+   each group by descending ranker score (ties in candidate order). A returned score is the
+   ranker's score plus :data:`FC_BONUS` for a passing candidate, so the scores order the grasps
+   as they were ranked.
+
+No step reads the mesh except :func:`camera_cloud`, which stands in for a depth camera: it ray
+casts the observation's mesh from cameras placed as the environments place theirs
+(:func:`dg16m_env.envs.cameras.draw_cameras` around the object's box: azimuth spread around,
+elevation -70 to -15 degrees, distance 0.9-1.2 x 2.2 x the bounding radius; MuJoCo's default
+45-degree field of view, ``camera_resolution`` square pixels) and keeps each pixel's first hit
+with that face's outward normal, then ``n_points`` of them (:func:`~dg16m_env.envs.cameras.
+fixed_size`). For procedural objects the mesh is the simulated geometry, so this is the
+environments' ``obs_mode="partial"`` cloud up to the camera draw; it needs no OpenGL. One camera
+never sees two antipodal contacts of a convex object, so the partial predictors default to two
+cameras on roughly opposite sides (``MAX_CAMERAS`` of the environments).
+
+Randomness: per object, ``numpy.random.default_rng(object_seed(seed, "cloud:<object_id>"))``
+(:func:`dataset_gen.sources.object_seed`) draws the cameras, the cloud subset, the candidates and
+(random ranker) the scores, in that order: the output is a function of the observation and the
+parameters only. The same ``seed`` gives every ranker the same candidates.
+
+An object without any candidate raises :class:`~baselines.cloud_grasps.CloudError`; the runner
+records it and scores the object 0. torch is imported only by the classifier rankers, with
+``torch.set_num_threads(threads)`` (default 1: one core); a loaded model is cached per process.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal, get_args
+
+import numpy as np
+import trimesh
+
+from baselines.cloud_grasps import (
+    Cloud,
+    CloudError,
+    CloudSamplerConfig,
+    DualCandidates,
+    check_cloud,
+    cloud_dual_candidates,
+)
+from dataset_gen.checks import check_integer
+from dataset_gen.pairing import score_pairs
+from dataset_gen.parameters import PAPER
+from dataset_gen.sources import object_seed
+
+Ranker = Literal["cgdf", "pointnetgpd", "random", "reversed"]
+RANKERS: tuple[str, ...] = get_args(Ranker)
+View = Literal["full", "partial"]
+VIEWS: tuple[str, ...] = get_args(View)
+
+CHECKPOINTS = Path(__file__).resolve().parent / "checkpoints"
+"""The shipped classifier checkpoints (``<model>-<labels>.pt``)."""
+
+PAPER_FORCE_CLOSURE = {
+    "mass": PAPER.mass,
+    "gravity": PAPER.gravity,
+    "mu": PAPER.mu,
+    "f_high": PAPER.f_high,
+    "threshold": PAPER.threshold,
+}
+"""Keyword arguments of the cloud force-closure check (the paper's parameters)."""
+
+SEED_PREFIX = "cloud:"
+"""Prefix of the per-object stream name."""
+
+FOVY_DEG = 45.0
+"""Vertical field of view of the cameras (degrees): MuJoCo's default ``vis.global_.fovy``, which
+the environments' depth cameras use."""
+
+FC_BONUS = 1.0e3
+"""Added to the score of a candidate that passes the cloud force-closure check (ranker scores:
+logits of a few tens at most, or uniform in [0, 1))."""
+
+_SCORE_CHUNK = 1024  # candidates per classifier call
+
+
+# --------------------------------------------------------------------------------------------
+# The partial cloud
+# --------------------------------------------------------------------------------------------
+
+
+def camera_rays(
+    position: np.ndarray, lookat: np.ndarray, resolution: int, fovy_deg: float = FOVY_DEG
+) -> np.ndarray:
+    """(R * R, 3) unit ray directions through the pixel centres of a pinhole camera at
+    ``position`` looking at ``lookat`` (m), ``+z`` up, square image of ``resolution`` pixels."""
+    forward = np.asarray(lookat, dtype=np.float64) - np.asarray(position, dtype=np.float64)
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    if np.linalg.norm(right) < 1e-9:  # looking straight down or up
+        right = np.cross(forward, [0.0, 1.0, 0.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    half = math.tan(math.radians(fovy_deg) / 2.0)
+    t = (2.0 * (np.arange(resolution) + 0.5) / resolution - 1.0) * half
+    u, v = np.meshgrid(t, -t)  # rows top to bottom
+    rays = forward + u[..., None] * right + v[..., None] * up
+    rays = rays.reshape(-1, 3)
+    return rays / np.linalg.norm(rays, axis=1, keepdims=True)
+
+
+def camera_cloud(
+    observation: dict[str, Any],
+    rng: np.random.Generator,
+    *,
+    n_cameras: int = 2,
+    resolution: int = 128,
+    n_points: int = 1024,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What ``n_cameras`` seeded depth cameras see of the observation's object.
+
+    Args:
+        observation: needs ``mesh_vertices`` (V, 3), ``mesh_faces`` (F, 3) and ``bounds`` (2, 3)
+            (object frame, m).
+        rng: draws the cameras, then the subset of points.
+        n_cameras: cameras (>= 1).
+        resolution: image side (pixels).
+        n_points: points returned.
+
+    Returns:
+        ``points (n_points, 3)``, ``normals (n_points, 3)`` float32 (unit outward) and ``mask
+        (n_points,)`` float32 (1 = real, 0 = padding), as the environments' partial observation.
+    """
+    from dg16m_env.envs.cameras import draw_cameras, fixed_size
+
+    check_integer("n_cameras", n_cameras, minimum=1, error=CloudError)
+    check_integer("resolution", resolution, minimum=2, error=CloudError)
+    check_integer("n_points", n_points, minimum=1, error=CloudError)
+    missing = [k for k in ("mesh_vertices", "mesh_faces", "bounds") if k not in observation]
+    if missing:
+        raise CloudError(f"observation: expected keys {missing}, found {sorted(observation)}")
+    mesh = trimesh.Trimesh(
+        np.asarray(observation["mesh_vertices"], dtype=np.float64),
+        np.asarray(observation["mesh_faces"], dtype=np.int64),
+        process=False,
+    )
+    bounds = np.asarray(observation["bounds"], dtype=np.float64)
+    centre = bounds.mean(axis=0)
+    radius = max(float(np.linalg.norm(bounds[1] - bounds[0])) / 2.0, 1e-3)
+    points, normals = [], []
+    for pose in draw_cameras(rng, n_cameras, centre, radius):
+        origin = pose.position
+        rays = camera_rays(origin, np.asarray(pose.lookat), resolution)
+        hit_face, ray, where = mesh.ray.intersects_id(
+            np.tile(origin, (len(rays), 1)), rays, multiple_hits=False, return_locations=True
+        )
+        del ray
+        points.append(where)
+        normals.append(mesh.face_normals[hit_face])
+    return fixed_size(np.concatenate(points), np.concatenate(normals), n_points, rng)
+
+
+# --------------------------------------------------------------------------------------------
+# Classifiers
+# --------------------------------------------------------------------------------------------
+
+
+@functools.lru_cache(maxsize=4)
+def load_ranker(path: str, threads: int = 1) -> Any:
+    """The classifier of a checkpoint (:func:`baselines.grasp_geometry.load_checkpoint`), on the
+    CPU in eval mode, cached per process; sets ``torch.set_num_threads(threads)``."""
+    import torch
+
+    from baselines.grasp_geometry import load_checkpoint
+
+    torch.set_num_threads(threads)
+    model, _ = load_checkpoint(path)
+    return model
+
+
+def classifier_scores(model: Any, points: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """(N,) float64 logits of ``model(points (P, 3), poses (N, 2, 4, 4))`` (m), in chunks."""
+    import torch
+
+    cloud = torch.from_numpy(np.ascontiguousarray(points, dtype=np.float32))
+    out = []
+    with torch.no_grad():
+        for start in range(0, len(poses), _SCORE_CHUNK):
+            chunk = np.ascontiguousarray(poses[start : start + _SCORE_CHUNK], dtype=np.float32)
+            out.append(model(cloud, torch.from_numpy(chunk)).to(torch.float64).numpy())
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def cloud_force_closure(candidates: DualCandidates) -> np.ndarray:
+    """(N,) bool: each candidate's four cloud contacts pass the force-closure check
+    (:func:`dataset_gen.pairing.score_pairs`, the paper's mass, gravity, mu, f_high and
+    threshold; the physical convention)."""
+    if candidates.n == 0:
+        return np.zeros(0, dtype=bool)
+    verdict = score_pairs(candidates.grasps, candidates.pairs, **PAPER_FORCE_CLOSURE)
+    return np.asarray(verdict.passed, dtype=bool)
+
+
+# --------------------------------------------------------------------------------------------
+# The predictor
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CloudPredictor:
+    """A sample-and-rank predictor on a point cloud (see the module docstring).
+
+    Attributes:
+        ranker: ``"cgdf"``, ``"pointnetgpd"``, ``"random"`` or ``"reversed"`` (negated CGDF).
+        view: ``"full"`` (the observation's cloud) or ``"partial"`` (:func:`camera_cloud`).
+        k: dual grasps returned per object (fewer when there are fewer candidates).
+        seed: global seed of the per-object streams.
+        n_cameras, camera_resolution, n_points: the partial view (cameras, pixels, points).
+        checkpoint: a classifier checkpoint file (default: the shipped ``<ranker>-dg16m.pt``;
+            ``"reversed"`` uses CGDF's).
+        threads: torch threads.
+        force_closure: rank candidates that pass force closure on the cloud first.
+        sampler: the candidate sampler's parameters.
+    """
+
+    ranker: Ranker = "cgdf"
+    view: View = "full"
+    k: int = 10
+    seed: int = 0
+    n_cameras: int = 2
+    camera_resolution: int = 128
+    n_points: int = 1024
+    checkpoint: str | None = None
+    threads: int = 1
+    force_closure: bool = True
+    sampler: CloudSamplerConfig = field(default_factory=CloudSamplerConfig)
+
+    def __post_init__(self) -> None:
+        if self.ranker not in RANKERS:
+            raise CloudError(f"ranker: expected one of {RANKERS}, found {self.ranker!r}")
+        if self.view not in VIEWS:
+            raise CloudError(f"view: expected one of {VIEWS}, found {self.view!r}")
+        for name, minimum in (
+            ("k", 1),
+            ("seed", 0),
+            ("n_cameras", 1),
+            ("camera_resolution", 2),
+            ("n_points", 1),
+            ("threads", 1),
+        ):
+            check_integer(name, getattr(self, name), minimum=minimum, error=CloudError)
+        if not isinstance(self.sampler, CloudSamplerConfig):
+            raise CloudError(
+                f"sampler: expected a CloudSamplerConfig, found {type(self.sampler).__name__}"
+            )
+
+    @property
+    def name(self) -> str:
+        """E.g. ``"cloud-cgdf-partial"``."""
+        return f"cloud-{self.ranker}-{self.view}"
+
+    def checkpoint_path(self) -> str:
+        """The classifier checkpoint the ranker uses (a str path)."""
+        if self.checkpoint is not None:
+            return str(self.checkpoint)
+        model = "cgdf" if self.ranker == "reversed" else self.ranker
+        return str(CHECKPOINTS / f"{model}-dg16m.pt")
+
+    def cloud(self, observation: dict[str, Any], rng: np.random.Generator) -> Cloud:
+        """The checked cloud of the configured view."""
+        if not isinstance(observation, dict):
+            raise CloudError(f"observation: expected a dict, found {type(observation).__name__}")
+        if self.view == "partial":
+            points, normals, mask = camera_cloud(
+                observation,
+                rng,
+                n_cameras=self.n_cameras,
+                resolution=self.camera_resolution,
+                n_points=self.n_points,
+            )
+            return check_cloud(points, normals, mask)
+        missing = [k for k in ("points", "normals") if k not in observation]
+        if missing:
+            raise CloudError(f"observation: expected keys {missing}, found {sorted(observation)}")
+        return check_cloud(observation["points"], observation["normals"])
+
+    def candidates(
+        self, observation: dict[str, Any]
+    ) -> tuple[Cloud, DualCandidates, np.random.Generator]:
+        """The cloud, its dual candidates and the object's stream after sampling."""
+        object_id = observation.get("object_id") if isinstance(observation, dict) else None
+        if not isinstance(object_id, str) or not object_id:
+            raise CloudError(
+                f"observation object_id: expected a non-empty str, found {object_id!r}"
+            )
+        rng = np.random.default_rng(object_seed(self.seed, SEED_PREFIX + object_id))
+        cloud = self.cloud(observation, rng)
+        cands = cloud_dual_candidates(cloud, self.sampler, rng=rng)
+        if cands.n == 0 and self.sampler.clearance_factor > 0.0:  # thin walls: no clearance
+            relaxed = dataclasses.replace(self.sampler, clearance_factor=0.0)
+            cands = cloud_dual_candidates(cloud, relaxed, rng=rng)
+            cands.counts["clearance_relaxed"] = 1
+        return cloud, cands, rng
+
+    def rank(
+        self, cloud: Cloud, candidates: DualCandidates, rng: np.random.Generator
+    ) -> np.ndarray:
+        """(N,) float64 scores of the candidates (higher = better)."""
+        if self.ranker == "random":
+            return rng.random(candidates.n)
+        model = load_ranker(self.checkpoint_path(), self.threads)
+        scores = classifier_scores(model, cloud.points, candidates.poses)
+        return 0.0 - scores if self.ranker == "reversed" else scores
+
+    def __call__(self, observation: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+        """Predict: ``poses (K, 2, 4, 4)`` float64 (object frame, m), ``scores (K,)``, K <= k.
+
+        Raises:
+            CloudError: a malformed observation or cloud, or no candidate at all.
+        """
+        cloud, cands, rng = self.candidates(observation)
+        if cands.n == 0:
+            raise CloudError(
+                f"{observation['object_id']}: expected at least one dual candidate on the "
+                f"{self.view} cloud ({cloud.n} points), found none (counts: {cands.counts})"
+            )
+        scores = self.rank(cloud, cands, rng)
+        if self.force_closure:
+            scores = scores + FC_BONUS * cloud_force_closure(cands)
+        top = np.argsort(-scores, kind="stable")[: self.k]
+        return cands.poses[top].astype(np.float64), np.asarray(scores[top], dtype=np.float64)
+
+
+cgdf_predictor = CloudPredictor("cgdf")
+"""CGDF ranks candidates on the full cloud (``baselines.cloud_predictor:cgdf_predictor``)."""
+pointnetgpd_predictor = CloudPredictor("pointnetgpd")
+"""Dual-PointNetGPD ranks candidates on the full cloud."""
+random_predictor = CloudPredictor("random")
+"""The random-rank control on the full cloud (same candidates as the classifiers')."""
+cgdf_partial_predictor = CloudPredictor("cgdf", view="partial", n_points=4096)
+"""CGDF on what two seeded depth cameras see (4096 of their points)."""
+pointnetgpd_partial_predictor = CloudPredictor("pointnetgpd", view="partial", n_points=4096)
+"""Dual-PointNetGPD on what two seeded depth cameras see."""
+random_partial_predictor = CloudPredictor("random", view="partial", n_points=4096)
+"""The random-rank control on what two seeded depth cameras see."""
+
+
+__all__ = [
+    "CHECKPOINTS",
+    "FC_BONUS",
+    "FOVY_DEG",
+    "PAPER_FORCE_CLOSURE",
+    "RANKERS",
+    "SEED_PREFIX",
+    "VIEWS",
+    "CloudPredictor",
+    "Ranker",
+    "View",
+    "camera_cloud",
+    "camera_rays",
+    "cgdf_partial_predictor",
+    "cgdf_predictor",
+    "classifier_scores",
+    "cloud_force_closure",
+    "load_ranker",
+    "pointnetgpd_partial_predictor",
+    "pointnetgpd_predictor",
+    "random_partial_predictor",
+    "random_predictor",
+]
