@@ -3,17 +3,26 @@
 Routes (JSON answers carry ``{"error": message}`` on failure, with the HTTP status):
 
 ==========================================  ======  ========================================
-``/``                                       GET     the board (HTML)
+``/``                                       GET     the board (HTML, a page of rows)
 ``/submissions/<id>``                       GET     a scored submission's details (HTML)
 ``/assets/<name>``                          GET     the page's CSS and script
-``/api/board``                              GET     the board view (JSON, public results)
-``/api/queue``                              GET     queued and running jobs, stale leases
+``/api/board``                              GET     the board view (JSON, public results,
+                                                    a page of rows)
+``/api/queue``                              GET     submissions per status; with a team's
+                                                    token, also its own jobs
 ``/api/health``                             GET     ``{"status": "ok", ...}``
 ``/api/submissions``                        POST    upload a submission file (team token)
 ``/api/submissions``                        GET     the team's submissions (team token)
 ``/api/submissions/<id>``                   GET     one of the team's submissions with its
                                                     error, scoring log and events
 ==========================================  ======  ========================================
+
+The board (``/`` and ``/api/board``) comes a page at a time: ``?page=N&limit=M`` (page from
+1, 1 <= M <= 500 rows per evaluator, default 50); the view says how many pages there are and
+links the previous and next. Ids in paths are positive 64-bit integers; anything else is 404.
+Every error is JSON (``/api/*``) or an HTML page (the rest), with the security headers
+(:data:`SECURITY_HEADERS`), unhandled exceptions included (a 500 that names no internals;
+the traceback goes to the server's log).
 
 A team authenticates with ``Authorization: Bearer <token>``. An upload is the file's bytes as
 the request body (``Content-Type: application/octet-stream``) with the query parameters
@@ -29,12 +38,18 @@ before reading, and the body is counted while it streams to a temporary file), t
 validation against the board's benchmark (422 with every problem), a repeat of an earlier
 submission (409). An accepted upload is stored by content hash and queued (202); workers score
 it (``dg16m leaderboard worker``). The service never runs submitted code.
+
+Slow clients cannot hold the service: a request's line and headers must arrive within
+``header_timeout_s`` (:mod:`leaderboard.protocol`), an upload's body may pause at most
+``body_idle_timeout_s`` between chunks and take at most ``upload_timeout_s`` in all (else
+408), and on SIGTERM the server stops accepting, finishes what completes within
+``shutdown_timeout_s`` and abandons the rest (their temporary files are removed; a killed
+server's are removed when the next one starts).
 """
 
 from __future__ import annotations
 
-import os
-import tempfile
+import re
 import threading
 import time
 from collections import deque
@@ -42,13 +57,15 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlencode
 
+import anyio
 from starlette.applications import Starlette
 from starlette.concurrency import run_in_threadpool
-from starlette.datastructures import MutableHeaders
+from starlette.datastructures import MutableHeaders, QueryParams
 from starlette.middleware import Middleware
 from starlette.requests import ClientDisconnect, Request
-from starlette.responses import HTMLResponse, JSONResponse, Response
+from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -62,10 +79,13 @@ from .board import (
     Team,
     check_evaluators,
     check_file_name,
+    check_id,
     check_label,
 )
+from .checks import InvalidParameterError
 from .page import ASSETS, asset_text, render_index, render_submission
-from .views import board_view, queue_view, submission_view
+from .protocol import error_body, guarded_protocol
+from .views import PAGE_ROWS, board_view, public_queue_view, submission_view
 
 MIB = 1 << 20
 SECURITY_HEADERS = {
@@ -78,6 +98,7 @@ SECURITY_HEADERS = {
     "Referrer-Policy": "no-referrer",
 }
 ASSET_TYPES = {".css": "text/css; charset=utf-8", ".js": "text/javascript; charset=utf-8"}
+_NUMBER = re.compile(r"^[0-9]{1,19}$")
 
 
 @dataclass(frozen=True)
@@ -89,17 +110,39 @@ class ServiceConfig:
         rate_limit: uploads a team may make per ``rate_window_s`` (refused and failed ones
             count).
         rate_window_s: the rate limit's sliding window (s).
+        header_timeout_s: time for a request's line and headers to arrive (s).
+        max_header_bytes: largest request line and headers (bytes; more: 431).
+        body_idle_timeout_s: longest pause between two chunks of an upload's body (s).
+        upload_timeout_s: longest time to receive an upload's body (s).
+        shutdown_timeout_s: on SIGTERM, time given to requests in flight before they are
+            abandoned (s).
     """
 
     max_upload_bytes: int = 64 * MIB
     rate_limit: int = 10
     rate_window_s: float = 3600.0
+    header_timeout_s: float = 10.0
+    max_header_bytes: int = 32 * 1024
+    body_idle_timeout_s: float = 30.0
+    upload_timeout_s: float = 600.0
+    shutdown_timeout_s: float = 5.0
 
     def __post_init__(self) -> None:
         if self.max_upload_bytes < 1 or self.rate_limit < 1 or not self.rate_window_s > 0:
             raise BoardError(
                 "service: expected a positive upload limit, rate limit and window, found "
                 f"{self.max_upload_bytes}, {self.rate_limit}, {self.rate_window_s}"
+            )
+        timeouts = (
+            self.header_timeout_s,
+            self.body_idle_timeout_s,
+            self.upload_timeout_s,
+            self.shutdown_timeout_s,
+        )
+        if not all(t > 0 for t in timeouts) or self.max_header_bytes < 1024:
+            raise BoardError(
+                "service: expected positive timeouts and a header limit of at least 1024 "
+                f"bytes, found timeouts {timeouts} and {self.max_header_bytes} bytes"
             )
 
 
@@ -137,17 +180,64 @@ class _Refused(Exception):  # noqa: N818  (internal: an answer, not an error)
         self.status, self.message, self.extra = status, message, extra
 
 
-def _error(status: int, message: str, headers: dict[str, str] | None = None, **extra: Any):
-    return JSONResponse(
-        {"error": message, "status": status, **extra}, status_code=status, headers=headers
-    )
+def _is_api(path: str) -> bool:
+    return path.startswith("/api/")
+
+
+def error_response(
+    path: str,
+    status: int,
+    message: str,
+    headers: dict[str, str] | None = None,
+    **extra: Any,
+) -> Response:
+    """An error answer: ``{"error", "status", ...}`` JSON for ``/api/*``, an HTML page for the
+    rest; always with :data:`SECURITY_HEADERS` (the server's own 500 handler sits outside the
+    middleware that adds them)."""
+    headers = {**SECURITY_HEADERS, **(headers or {})}
+    if _is_api(path):
+        headers["Cache-Control"] = "no-store"
+        return JSONResponse(
+            {"error": message, "status": status, **extra}, status_code=status, headers=headers
+        )
+    body, content_type = error_body(status, message, api=False)
+    return Response(body, status_code=status, headers=headers, media_type=content_type)
+
+
+def _json(payload: Any) -> Response:
+    """A JSON answer, encoded where it is called (call it in a worker thread for big ones)."""
+    return JSONResponse(payload)
+
+
+def _query(params: QueryParams, allowed: set[str]) -> None:
+    unknown = sorted(set(params) - allowed)
+    if unknown:
+        raise InvalidParameterError(
+            f"query: expected only {sorted(allowed)}, found {[k[:40] for k in unknown[:10]]}"
+        )
+    for key in allowed:
+        if len(params.getlist(key)) > 1:
+            raise InvalidParameterError(f"query: expected {key!r} once, found it repeated")
+
+
+def _number(params: QueryParams, key: str, default: int) -> int:
+    value = params.get(key)
+    if value is None:
+        return default
+    if not _NUMBER.match(value):
+        raise InvalidParameterError(
+            f"{key}: expected a positive integer, found {value[:40]!r}"
+            + ("..." if len(value) > 40 else "")
+        )
+    return int(value)
 
 
 def create_app(board: Board, config: ServiceConfig = ServiceConfig()) -> Starlette:
-    """The service's ASGI app for ``board``."""
+    """The service's ASGI app for ``board``. Files that killed processes left in the board's
+    uploads folder and file store are removed first (:meth:`Board.remove_orphans`)."""
+    board.remove_orphans()
     limiter = RateLimiter(board, config.rate_limit, config.rate_window_s)
     max_bytes = min(config.max_upload_bytes, board.limits.max_file_bytes)
-    uploads = board.db.parent / f"{board.db.stem}.uploads"
 
     def team_of(request: Request) -> Team:
         header = request.headers.get("authorization")
@@ -165,31 +255,68 @@ def create_app(board: Board, config: ServiceConfig = ServiceConfig()) -> Starlet
             raise _Refused(401, "expected a team's token, found one that belongs to no team")
         return team
 
+    def board_page(request: Request) -> tuple[int, int]:
+        params = request.query_params
+        _query(params, {"page", "limit"})
+        return _number(params, "page", 1), _number(params, "limit", PAGE_ROWS)
+
+    def page_href(path: str, limit: int) -> Callable[[int], str]:
+        def href(number: int) -> str:
+            query = {"page": number} if limit == PAGE_ROWS else {"page": number, "limit": limit}
+            return f"{path}?{urlencode(query)}"
+
+        return href
+
     async def index(request: Request) -> Response:
-        view = await run_in_threadpool(board_view, board)
-        return HTMLResponse(
-            render_index(view, link=lambda i: f"/submissions/{i}", assets="/assets/")
-        )
+        page, limit = board_page(request)
+
+        def render() -> Response:
+            view = board_view(board, page=page, limit=limit)
+            text = render_index(
+                view,
+                link=lambda i: f"/submissions/{i}",
+                assets="/assets/",
+                page_link=page_href("/", limit),
+            )
+            return Response(text, media_type="text/html; charset=utf-8")
+
+        return await run_in_threadpool(render)
 
     async def submission_page(request: Request) -> Response:
-        sid = request.path_params["sid"]
-        try:
-            view = await run_in_threadpool(submission_view, board, sid)
-        except NotFoundError as exc:
-            return HTMLResponse(_not_found_page(str(exc)), status_code=404)
-        return HTMLResponse(render_submission(view, board_link="/", assets="/assets/"))
+        sid = check_id(request.path_params["sid"])
+
+        def render() -> Response:
+            view = submission_view(board, sid)
+            text = render_submission(view, board_link="/", assets="/assets/")
+            return Response(text, media_type="text/html; charset=utf-8")
+
+        return await run_in_threadpool(render)
 
     async def asset(request: Request) -> Response:
         name = request.path_params["name"]
         if name not in ASSETS:
-            return _error(404, f"asset: expected one of {', '.join(ASSETS)}, found {name[:100]!r}")
+            raise NotFoundError(f"asset: expected one of {', '.join(ASSETS)}, found {name[:100]!r}")
         return Response(asset_text(name), media_type=ASSET_TYPES[Path(name).suffix])
 
     async def api_board(request: Request) -> Response:
-        return JSONResponse(await run_in_threadpool(board_view, board))
+        page, limit = board_page(request)
+
+        def build() -> Response:
+            view = board_view(board, page=page, limit=limit)
+            href = page_href("/api/board", limit)
+            number, pages = view["page"]["number"], view["page"]["pages"]
+            view["page"]["prev"] = href(number - 1) if number > 1 else None
+            view["page"]["next"] = href(number + 1) if number < pages else None
+            return _json(view)
+
+        return await run_in_threadpool(build)
 
     async def api_queue(request: Request) -> Response:
-        return JSONResponse(await run_in_threadpool(queue_view, board))
+        _query(request.query_params, set())
+        team = None
+        if request.headers.get("authorization"):
+            team = await run_in_threadpool(team_of, request)
+        return await run_in_threadpool(lambda: _json(public_queue_view(board, team)))
 
     async def api_health(request: Request) -> Response:
         return JSONResponse({"status": "ok", "counts": await run_in_threadpool(board.counts)})
@@ -208,10 +335,49 @@ def create_app(board: Board, config: ServiceConfig = ServiceConfig()) -> Starlet
         )
 
     async def own_detail(request: Request) -> Response:
+        sid = check_id(request.path_params["sid"])
         team = await run_in_threadpool(team_of, request)
-        sid = request.path_params["sid"]
         await run_in_threadpool(board.own_submission, team, sid)  # 404 / 403
-        return JSONResponse(await run_in_threadpool(submission_view, board, sid, private=True))
+        return await run_in_threadpool(lambda: _json(submission_view(board, sid, private=True)))
+
+    async def read_body(request: Request, handle: Any) -> int:
+        """Stream the body into ``handle``; its size. Refused past the size limit (413), when
+        it stalls or takes too long (408), or when the client goes (400)."""
+        deadline = time.monotonic() + config.upload_timeout_s
+        chunks = request.stream().__aiter__()
+        size = 0
+        while True:
+            wait = min(config.body_idle_timeout_s, deadline - time.monotonic())
+            chunk: bytes | None = None
+            with anyio.move_on_after(max(wait, 0.0)):
+                try:
+                    chunk = await chunks.__anext__()
+                except StopAsyncIteration:
+                    return size
+                except ClientDisconnect:
+                    raise _Refused(
+                        400, "upload: expected the whole body, found the client gone"
+                    ) from None
+            if chunk is None:
+                whole = time.monotonic() >= deadline
+                limit = (
+                    f"the whole body within {config.upload_timeout_s:g} s"
+                    if whole
+                    else f"a part of the body at least every {config.body_idle_timeout_s:g} s"
+                )
+                raise _Refused(
+                    408,
+                    f"upload: expected {limit}, found {size} bytes and then nothing",
+                    headers={"Connection": "close"},
+                )
+            size += len(chunk)
+            if size > max_bytes:
+                raise _Refused(
+                    413,
+                    f"upload: expected at most {max_bytes} bytes, found more (stopped reading)",
+                    headers={"Connection": "close"},
+                )
+            handle.write(chunk)
 
     async def upload(request: Request) -> Response:
         team = await run_in_threadpool(team_of, request)
@@ -227,7 +393,9 @@ def create_app(board: Board, config: ServiceConfig = ServiceConfig()) -> Starlet
         allowed = {"filename", "label", "evaluators"}
         unknown = sorted(set(params) - allowed)
         if unknown:
-            raise _Refused(400, f"query: expected only {sorted(allowed)}, found {unknown}")
+            raise _Refused(
+                400, f"query: expected only {sorted(allowed)}, found {[k[:40] for k in unknown]}"
+            )
         filename = check_file_name(params.get("filename", "submission.h5"))
         label = params.get("label") or None
         if label is not None:
@@ -237,7 +405,7 @@ def create_app(board: Board, config: ServiceConfig = ServiceConfig()) -> Starlet
             evaluators = ",".join(check_evaluators(evaluators))
         declared = request.headers.get("content-length")
         if declared is not None:
-            if not declared.isdigit():
+            if not _NUMBER.match(declared):
                 raise _Refused(400, f"Content-Length: expected a number, found {declared[:40]!r}")
             if int(declared) > max_bytes:
                 raise _Refused(
@@ -245,26 +413,9 @@ def create_app(board: Board, config: ServiceConfig = ServiceConfig()) -> Starlet
                     f"upload: expected at most {max_bytes} bytes, found Content-Length "
                     f"{declared} (not read)",
                 )
-        uploads.mkdir(parents=True, exist_ok=True)
-        fd, tmp_name = tempfile.mkstemp(prefix="upload-", suffix=".h5", dir=uploads)
-        tmp = Path(tmp_name)
-        try:
-            size = 0
-            with os.fdopen(fd, "wb") as handle:
-                try:
-                    async for chunk in request.stream():
-                        size += len(chunk)
-                        if size > max_bytes:
-                            raise _Refused(
-                                413,
-                                f"upload: expected at most {max_bytes} bytes, found more "
-                                "(stopped reading)",
-                            )
-                        handle.write(chunk)
-                except ClientDisconnect:
-                    raise _Refused(
-                        400, "upload: expected the whole body, found the client gone"
-                    ) from None
+        with board.file_store.upload() as (handle, tmp):
+            size = await read_body(request, handle)
+            handle.flush()
             if size == 0:
                 raise _Refused(400, "upload: expected the submission file as the body, found none")
             try:
@@ -284,8 +435,6 @@ def create_app(board: Board, config: ServiceConfig = ServiceConfig()) -> Starlet
                 ) from None
             except DuplicateError as exc:
                 raise _Refused(409, str(exc), submission=exc.submission_id) from None
-        finally:
-            tmp.unlink(missing_ok=True)
         return JSONResponse(
             {
                 "submission": sid,
@@ -300,43 +449,54 @@ def create_app(board: Board, config: ServiceConfig = ServiceConfig()) -> Starlet
         handler: Callable[[Request], Awaitable[Response]],
     ) -> Callable[[Request], Awaitable[Response]]:
         async def wrapped(request: Request) -> Response:
+            path = request.url.path
             try:
                 response = await handler(request)
             except _Refused as exc:
                 headers = exc.extra.pop("headers", None)
                 if exc.status == 401:
                     headers = {**(headers or {}), "WWW-Authenticate": 'Bearer realm="dg16m"'}
-                response = _error(exc.status, exc.message, headers, **exc.extra)
+                response = error_response(path, exc.status, exc.message, headers, **exc.extra)
             except BoardError as exc:
-                response = _error(exc.status, str(exc))
+                response = error_response(path, exc.status, str(exc))
             return response
 
         return wrapped
 
     routes = [
         Route("/", answer(index)),
-        Route("/submissions/{sid:int}", answer(submission_page)),
+        Route("/submissions/{sid}", answer(submission_page)),
         Route("/assets/{name}", answer(asset)),
         Route("/api/board", answer(api_board)),
         Route("/api/queue", answer(api_queue)),
         Route("/api/health", answer(api_health)),
         Route("/api/submissions", answer(upload), methods=["POST"]),
         Route("/api/submissions", answer(own_list), methods=["GET"]),
-        Route("/api/submissions/{sid:int}", answer(own_detail)),
+        Route("/api/submissions/{sid}", answer(own_detail)),
     ]
 
     async def no_route(request: Request, exc: Exception) -> Response:
         status = getattr(exc, "status_code", 404)
-        return _error(
+        return error_response(
+            request.url.path,
             status,
-            f"{request.method} {request.url.path[:200]}: expected one of the service's routes "
-            "(see leaderboard.app), found none that matches",
+            f"{request.method[:20]} {request.url.path[:200]}: expected one of the service's "
+            "routes and methods (see leaderboard.app), found none that matches",
+        )
+
+    async def internal_error(request: Request, exc: Exception) -> Response:
+        # Starlette re-raises the exception after this answer: the server logs its traceback.
+        return error_response(
+            request.url.path,
+            500,
+            "service: expected to answer this request, found an internal error (it is in the "
+            "server's log; please report it)",
         )
 
     return Starlette(
         routes=routes,
         middleware=[Middleware(SecurityHeaders)],
-        exception_handlers={404: no_route, 405: no_route},
+        exception_handlers={404: no_route, 405: no_route, Exception: internal_error},
     )
 
 
@@ -357,35 +517,32 @@ class SecurityHeaders:
                 headers = MutableHeaders(scope=message)
                 for name, value in SECURITY_HEADERS.items():
                     headers[name] = value
-                if scope["path"].startswith("/api/"):
+                if _is_api(scope["path"]):
                     headers["Cache-Control"] = "no-store"
             await send(message)
 
         await self.app(scope, receive, send_with_headers)
 
 
-def _not_found_page(message: str) -> str:
-    from html import escape
-
-    return (
-        "<!doctype html><html lang='en'><head><meta charset='utf-8'><title>Not found</title>"
-        "<link rel='stylesheet' href='/assets/board.css'></head><body><main>"
-        f"<h1>Not found</h1><p>{escape(message)}</p><p><a href='/'>Back to the board</a></p>"
-        "</main></body></html>"
-    )
-
-
-def serve(
+def make_server(
     board: Board,
     *,
     host: str = "127.0.0.1",
     port: int = 8000,
     config: ServiceConfig = ServiceConfig(),
     log_level: str = "warning",
-    ready: Callable[[str], None] = print,
-) -> None:
-    """Serve the board with uvicorn until interrupted; ``ready`` gets the URL once listening
-    (port 0 picks a free port, and the URL says which)."""
+) -> tuple[Any, Any, str]:
+    """A uvicorn server for the board, its listening socket and its URL (port 0 picks a free
+    port); run it with ``server.run(sockets=[sock])`` (:func:`serve` does).
+
+    uvicorn runs its h11 protocol with the head deadline, the header size limit (431) and the
+    lingering close of :mod:`leaderboard.protocol`; on SIGTERM, requests still in flight after
+    ``config.shutdown_timeout_s`` are cancelled (an upload's temporary file is removed).
+
+    Raises:
+        BoardError: the address is taken or cannot be bound.
+    """
+    import math
     import socket
 
     import uvicorn
@@ -404,12 +561,34 @@ def serve(
     server = uvicorn.Server(
         uvicorn.Config(
             create_app(board, config),
+            http=guarded_protocol(
+                header_timeout_s=config.header_timeout_s,
+                body_grace_s=0.8 * config.shutdown_timeout_s,
+                security_headers=SECURITY_HEADERS,
+            ),
             log_level=log_level,
             timeout_keep_alive=5,
+            timeout_graceful_shutdown=max(1, math.ceil(config.shutdown_timeout_s)),
+            h11_max_incomplete_event_size=config.max_header_bytes,
             server_header=False,
         )
     )
-    sock.listen(128)  # connections wait in the backlog until uvicorn accepts them
+    sock.listen(1024)  # connections wait in the backlog until uvicorn accepts them
     url = f"http://{host if family == socket.AF_INET else f'[{host}]'}:{bound}/"
+    return server, sock, url
+
+
+def serve(
+    board: Board,
+    *,
+    host: str = "127.0.0.1",
+    port: int = 8000,
+    config: ServiceConfig = ServiceConfig(),
+    log_level: str = "warning",
+    ready: Callable[[str], None] = print,
+) -> None:
+    """Serve the board with uvicorn (:func:`make_server`) until SIGTERM or SIGINT; ``ready``
+    gets the URL once listening."""
+    server, sock, url = make_server(board, host=host, port=port, config=config, log_level=log_level)
     ready(url)
     server.run(sockets=[sock])

@@ -199,6 +199,27 @@ def register(subparsers: Any) -> None:
     serve.add_argument(
         "--rate-window", type=float, default=3600.0, metavar="S", help="window (default 3600 s)"
     )
+    serve.add_argument(
+        "--header-timeout",
+        type=float,
+        default=10.0,
+        metavar="S",
+        help="time for a request's line and headers to arrive (default 10 s)",
+    )
+    serve.add_argument(
+        "--body-timeout",
+        type=float,
+        default=30.0,
+        metavar="S",
+        help="longest pause within an upload's body (default 30 s; whole body: 600 s)",
+    )
+    serve.add_argument(
+        "--shutdown-timeout",
+        type=float,
+        default=5.0,
+        metavar="S",
+        help="on SIGTERM, time for requests in flight before they are abandoned (default 5 s)",
+    )
     serve.add_argument("--log-level", default="warning", help="uvicorn's log level")
     serve.set_defaults(handler=_serve)
 
@@ -455,6 +476,9 @@ def _serve(args: argparse.Namespace) -> int:
         max_upload_bytes=int(args.max_upload_mb * MIB),
         rate_limit=args.rate_limit,
         rate_window_s=args.rate_window,
+        header_timeout_s=args.header_timeout,
+        body_idle_timeout_s=args.body_timeout,
+        shutdown_timeout_s=args.shutdown_timeout,
     )
     serve(
         board,

@@ -291,13 +291,21 @@ def _kv_table(pairs: Iterable[tuple[str, Any]], *, cls: str = "kv") -> str:
 # The board (index page)
 
 
-def render_index(view: Mapping[str, Any], *, link: Callable[[int], str], assets: str) -> str:
+def render_index(
+    view: Mapping[str, Any],
+    *,
+    link: Callable[[int], str],
+    assets: str,
+    page_link: Callable[[int], str] | None = None,
+) -> str:
     """The leaderboard page: one sortable table and one per-family chart per evaluator.
 
     Args:
-        view: the board view.
+        view: the board view (one page of it when it has ``"page"``).
         link: submission id -> href of its detail page.
         assets: prefix of the CSS and JS hrefs (e.g. ``"assets/"``).
+        page_link: page number -> href of that page of the board (links to the previous and
+            next pages when the view is one page of several).
     """
     title = str(view.get("title") or "leaderboard")
     evaluators: Sequence[Mapping[str, Any]] = view.get("evaluators") or []
@@ -314,12 +322,28 @@ def render_index(view: Mapping[str, Any], *, link: Callable[[int], str], assets:
         parts.append('<p class="empty">No evaluators yet.</p>\n')
     for ev in evaluators:
         parts.append(_evaluator_section(ev, link))
+    paging = view.get("page")
+    if isinstance(paging, Mapping) and page_link is not None:
+        parts.append(_page_nav(paging, page_link))
     parts.append("</main>\n")
     parts.append(
         "<footer><p>Rates are means over rows; the bracket is the 95% confidence interval from "
         "resampling objects. A dash: no score.</p></footer>\n"
     )
     return _page(title, assets, "".join(parts), page_class="board-page")
+
+
+def _page_nav(paging: Mapping[str, Any], page_link: Callable[[int], str]) -> str:
+    """Where this page is among the board's pages, with links to the previous and next."""
+    number, pages = int(paging.get("number") or 1), int(paging.get("pages") or 1)
+    limit = int(paging.get("limit") or 0)
+    bits = []
+    if number > 1:
+        bits.append(f'<a rel="prev" href="{_e(page_link(number - 1))}">previous page</a>')
+    bits.append(f"<span>page {number} of {pages} (up to {limit} rows per evaluator)</span>")
+    if number < pages:
+        bits.append(f'<a rel="next" href="{_e(page_link(number + 1))}">next page</a>')
+    return f'<nav class="pages" aria-label="Pages">{" · ".join(bits)}</nav>\n'
 
 
 def _benchmark_line(benchmark: Mapping[str, Any], generated_at: Any) -> str:

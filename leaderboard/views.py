@@ -3,10 +3,16 @@
 * :func:`board_view`: per evaluator, the scored submissions ranked by the evaluator's headline
   metric (competition ranking: equal scores share a rank), each with its metrics and
   confidence intervals and its headline per object family; the benchmark; counts by status.
+  With ``page`` and ``limit``, one page of each evaluator's rows (ranks count every row
+  before the page), each section's ``total`` and the view's ``page`` (number, limit, pages,
+  total: the longest section's rows).
 * :func:`submission_view`: one submission: its file's hash and size, its evaluators' full
   results (per object, versions, hashes, seeds). The public view exists for scored
   submissions only; the team's own view (``private=True``) adds the error, the scoring log and
   every state change, for submissions in any state.
+* :func:`queue_view`: the queue's jobs with their workers and leases (the operator's view, on
+  the command line); :func:`public_queue_view`: counts only, and a team's own jobs when asked
+  with its token (what the service shows).
 
 The page (:mod:`leaderboard.page`), the service's JSON answers and ``dg16m leaderboard show``
 all read these views; their schema is ``format = "dg16m-leaderboard"``, ``version = 1``.
@@ -15,15 +21,21 @@ all read these views; their schema is ``format = "dg16m-leaderboard"``, ``versio
 from __future__ import annotations
 
 import json
+import math
 import sqlite3
 from collections.abc import Mapping
 from typing import Any
 
-from .board import Board, NotFoundError
+from .board import Board, NotFoundError, Team
+from .checks import InvalidParameterError
 from .worker import iso_time
 
 VIEW_FORMAT = "dg16m-leaderboard"
 VIEW_VERSION = 1
+PAGE_ROWS = 50
+"""Rows per evaluator on one page of the board (the service's default)."""
+MAX_PAGE_ROWS = 500
+"""Most rows per evaluator one page may ask for."""
 
 
 def _is_rate(value: Any) -> bool:
@@ -37,23 +49,57 @@ def _rate_only(value: Any) -> Any:
     return value
 
 
-def board_view(board: Board, *, now: float | None = None) -> dict[str, Any]:
-    """The ranked board (see the module docstring)."""
+def check_page(page: int, limit: int) -> None:
+    """Refuse a page number below 1 or a page size outside 1 .. :data:`MAX_PAGE_ROWS`.
+
+    Raises:
+        InvalidParameterError: (status 422) saying what was expected.
+    """
+    if not 1 <= limit <= MAX_PAGE_ROWS:
+        raise InvalidParameterError(
+            f"limit: expected 1 to {MAX_PAGE_ROWS} rows per page, found {limit}"
+        )
+    if page < 1:
+        raise InvalidParameterError(f"page: expected a page number from 1, found {page}")
+
+
+def board_view(
+    board: Board,
+    *,
+    now: float | None = None,
+    page: int | None = None,
+    limit: int = PAGE_ROWS,
+) -> dict[str, Any]:
+    """The ranked board (see the module docstring): every row, or page ``page`` (from 1) of
+    ``limit`` rows per evaluator.
+
+    Raises:
+        InvalidParameterError: a bad page number or size; NotFoundError: a page past the last.
+    """
     setting = board.benchmark
+    totals = board.scored_totals()
+    order = board.evaluators + sorted(set(totals) - set(board.evaluators))
     by_evaluator: dict[str, list[sqlite3.Row]] = {}
-    for row in board.scored():
-        by_evaluator.setdefault(row["evaluator"], []).append(row)
-    order = board.evaluators + sorted(set(by_evaluator) - set(board.evaluators))
+    paging: dict[str, Any] | None = None
+    if page is None:
+        for row in board.scored():
+            by_evaluator.setdefault(row["evaluator"], []).append(row)
+    else:
+        check_page(page, limit)
+        longest = max(totals.values(), default=0)
+        pages = max(1, math.ceil(longest / limit))
+        if page > pages:
+            raise NotFoundError(f"page: expected a page number from 1 to {pages}, found {page}")
+        paging = {"number": page, "limit": limit, "pages": pages, "total": longest}
+        for name in order:
+            by_evaluator[name] = board.scored_page(name, (page - 1) * limit, limit)
     sections = []
     for name in order:
         rows, columns, families = [], [], set()
         headline = name  # until a result names it
-        previous: tuple[Any, int] | None = None
-        for position, row in enumerate(by_evaluator.get(name, []), start=1):
+        for row in by_evaluator.get(name, []):
             result = json.loads(row["result"])
             headline = result["headline"]
-            rank = previous[1] if previous is not None and previous[0] == row["score"] else position
-            previous = (row["score"], rank)
             metrics = {k: _rate_only(v) for k, v in result["metrics"].items()}
             for key in [headline, *metrics]:
                 if key not in columns and _is_rate(metrics.get(key)):
@@ -65,7 +111,7 @@ def board_view(board: Board, *, now: float | None = None) -> dict[str, Any]:
             families.update(per_family)
             rows.append(
                 {
-                    "rank": rank,
+                    "rank": row["rank"],
                     "submission": row["submission"],
                     "team": row["team"],
                     "label": row["label"],
@@ -75,16 +121,17 @@ def board_view(board: Board, *, now: float | None = None) -> dict[str, Any]:
                     "per_family": per_family,
                 }
             )
-        sections.append(
-            {
-                "name": name,
-                "headline": headline,
-                "columns": columns or [headline],
-                "families": sorted(families),
-                "rows": rows,
-            }
-        )
-    return {
+        section: dict[str, Any] = {
+            "name": name,
+            "headline": headline,
+            "columns": columns or [headline],
+            "families": sorted(families),
+            "rows": rows,
+        }
+        if paging is not None:
+            section["total"] = totals.get(name, 0)
+        sections.append(section)
+    view: dict[str, Any] = {
         "format": VIEW_FORMAT,
         "version": VIEW_VERSION,
         "title": board.title,
@@ -97,6 +144,9 @@ def board_view(board: Board, *, now: float | None = None) -> dict[str, Any]:
         "counts": board.counts(),
         "evaluators": sections,
     }
+    if paging is not None:
+        view["page"] = paging
+    return view
 
 
 def submission_view(board: Board, submission_id: int, *, private: bool = False) -> dict[str, Any]:
@@ -170,3 +220,31 @@ def queue_view(board: Board) -> dict[str, Any]:
             }
         )
     return {"generated_at": iso_time(now), "counts": board.counts(), "jobs": jobs}
+
+
+def public_queue_view(board: Board, team: Team | None = None) -> dict[str, Any]:
+    """What the service shows of the queue: submissions per status (queued, running, scored,
+    failed) and, for a team that shows its token, its own jobs (state, attempts, stale); never
+    another team's labels or names, nor which worker holds a job."""
+    counts = board.counts()
+    view: dict[str, Any] = {
+        "generated_at": iso_time(board.clock()),
+        "counts": {k: counts[k] for k in ("queued", "running", "scored", "failed")},
+    }
+    if team is not None:
+        now = board.clock()
+        view["team"] = team.name
+        view["jobs"] = [
+            {
+                "submission": row["submission_id"],
+                "label": row["label"],
+                "state": row["state"],
+                "attempts": row["attempts"],
+                "queued_at": iso_time(row["queued_at"]),
+                "stale": row["state"] == "running"
+                and row["lease_expires_at"] is not None
+                and row["lease_expires_at"] < now,
+            }
+            for row in board.queue(team)
+        ]
+    return view

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import sqlite3
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -65,3 +66,33 @@ def set_benchmark(db: Path, *, sha256: str, object_ids: list[str], path: str | N
         conn.commit()
     finally:
         conn.close()
+
+
+class FakeResult:
+    """What ``Board.finish`` stores of a result: a stand-in for an evaluator's
+    :class:`~dg16m_env.evaluators.EvaluationResult` with an ``fce`` headline of ``score``."""
+
+    evaluator_version = "1"
+
+    def __init__(self, score: float):
+        self.score = score
+
+    def to_dict(self) -> dict[str, Any]:
+        rate = {"rate": self.score, "ci_low": self.score, "ci_high": self.score, "rows": 1}
+        return {"headline": "fce", "metrics": {"fce": rate}, "per_family": {}}
+
+
+def scored_rows(board: Any, team_name: str, n: int, *, ties: int = 40) -> list[int]:
+    """``n`` scored fce results of ``team_name`` (scores ``(i % ties) / ties``) recorded without
+    files or evaluators (the queue's records only); returns their submission ids."""
+    from leaderboard.queue import NewSubmission
+
+    team = board.team(team_name)
+    ids = []
+    for i in range(n):
+        new = NewSubmission(team.id, team.name, f"{i:064x}", 1, f"f{i}.h5", f"run {i}", ["fce"])
+        sid = board.jobs.enqueue(new)
+        claim = board.claim("w", 60.0, submission_id=sid)
+        assert board.finish(claim, {"fce": FakeResult((i % ties) / ties)}, "log")
+        ids.append(sid)
+    return ids
