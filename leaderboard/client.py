@@ -9,6 +9,7 @@ import time
 import urllib.error
 import urllib.parse
 import urllib.request
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -97,13 +98,22 @@ def status(url: str, token: str, submission_id: int, *, timeout: float = 30.0) -
 
 
 def wait(
-    url: str, token: str, submission_id: int, *, timeout_s: float, poll_s: float = 2.0
+    url: str,
+    token: str,
+    submission_id: int,
+    *,
+    timeout_s: float,
+    poll_s: float = 2.0,
+    on_update: Callable[[dict[str, Any], float], None] | None = None,
 ) -> dict[str, Any]:
     """Poll until the submission is scored or failed, or ``timeout_s`` passed (then the last
-    answer, still queued or running)."""
-    deadline = time.monotonic() + timeout_s
+    answer, still queued or running); ``on_update(answer, seconds waited)`` after each poll."""
+    start = time.monotonic()
+    deadline = start + timeout_s
     while True:
         answer = status(url, token, submission_id)
+        if on_update is not None:
+            on_update(answer, time.monotonic() - start)
         if answer.get("status") in ("scored", "failed") or time.monotonic() >= deadline:
             return answer
         time.sleep(poll_s)

@@ -12,6 +12,7 @@ import json
 import os
 import signal
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -138,6 +139,9 @@ def register(subparsers: Any) -> None:
     )
     remote.add_argument(
         "--wait", type=float, default=0.0, metavar="S", help="wait up to S s for the score"
+    )
+    submit.add_argument(
+        "--no-progress", action="store_true", help="no progress bars while scoring locally"
     )
     submit.set_defaults(handler=_submit)
 
@@ -336,9 +340,11 @@ def _submit(args: argparse.Namespace) -> int:
             args.url, token, args.file, label=args.label, evaluators=args.evaluators
         )
         sid = int(answer["submission"])
-        print(f"submission #{sid} queued on {args.url}")
+        print(f"submission #{sid} queued on {args.url}", flush=True)
         if args.wait > 0:
-            answer = client.wait(args.url, token, sid, timeout_s=args.wait)
+            answer = client.wait(
+                args.url, token, sid, timeout_s=args.wait, on_update=_print_progress(sid)
+            )
             _print_submission(answer)
             return 0 if answer.get("status") == "scored" else 1
         return 0
@@ -349,21 +355,43 @@ def _submit(args: argparse.Namespace) -> int:
     board = _open(args, create=True)
     team = board.team(args.team)
     sid = board.submit(team, args.file, label=args.label, evaluators=args.evaluators)
-    print(f"submission #{sid} stored and queued ({args.file.name})")
+    print(f"submission #{sid} stored and queued ({args.file.name})", flush=True)
     if args.queue_only:
         return 0
     options = WorkerOptions(
-        lease_s=args.lease, workers=args.workers, backend=args.backend, address=args.address
+        lease_s=args.lease,
+        workers=args.workers,
+        backend=args.backend,
+        address=args.address,
+        progress=not args.no_progress,
     )
     claim = board.claim(worker_name(), options.lease_s, submission_id=sid)
     if claim is None:
         print(f"submission #{sid} was claimed by a worker meanwhile")
         return 0
-    outcome = score_claim(board, claim, options)
+    print(f"submission #{sid}: scoring here with {args.workers} worker(s)", flush=True)
+    outcome = score_claim(board, claim, options, on_log=lambda line: print(f"  {line}", flush=True))
     from .views import submission_view
 
     _print_submission(submission_view(board, sid, private=True))
     return 0 if outcome == "scored" else 1
+
+
+def _plural(n: int, noun: str) -> str:
+    return f"{n} {noun}" + ("" if n == 1 else "s")
+
+
+def _print_progress(sid: int) -> Callable[[dict[str, Any], float], None]:
+    """While ``--wait`` polls a service: a line when the status changes, and every 30 s."""
+    last: dict[str, Any] = {"status": None, "at": -1e9}
+
+    def show(answer: dict[str, Any], waited_s: float) -> None:
+        status = answer.get("status")
+        if status != last["status"] or waited_s - last["at"] >= 30.0:
+            print(f"submission #{sid}: {status} ({waited_s:.0f} s)", flush=True)
+            last.update(status=status, at=waited_s)
+
+    return show
 
 
 def _print_submission(view: dict[str, Any]) -> None:
@@ -397,7 +425,8 @@ def _show(args: argparse.Namespace) -> int:
     counts = view["counts"]
     print(
         f"{view['title']}: benchmark {bench['sha256'][:12]} ({bench['objects']} objects); "
-        f"{counts['teams']} teams, {counts['submissions']} submissions ({counts['scored']} "
+        f"{_plural(counts['teams'], 'team')}, {_plural(counts['submissions'], 'submission')} "
+        f"({counts['scored']} "
         f"scored, {counts['queued']} queued, {counts['running']} running, {counts['failed']} "
         "failed)"
     )

@@ -216,11 +216,15 @@ def _date_text(value: Any) -> str:
     return f"{day} {minute} {zone}"
 
 
-def _time(value: Any) -> str:
-    """A ``<time>`` element for an ISO date (plain text when it is not one)."""
+def _time(value: Any, *, day_only: bool = False) -> str:
+    """A ``<time>`` element for an ISO date (plain text when it is not one); ``day_only`` shows
+    the day and keeps the minute in its tooltip (the board's narrow date column)."""
     if value is None or value == "":
         return DASH
-    return f'<time datetime="{_e(value)}">{_e(_date_text(value))}</time>'
+    text = _date_text(value)
+    if day_only and _ISO.match(str(value)):
+        return f'<time datetime="{_e(value)}" title="{_e(text)}">{_e(text.split(" ")[0])}</time>'
+    return f'<time datetime="{_e(value)}">{_e(text)}</time>'
 
 
 def _size_text(size: Any) -> str:
@@ -360,10 +364,20 @@ def _benchmark_line(benchmark: Mapping[str, Any], generated_at: Any) -> str:
     return f'<p class="benchmark">{" · ".join(bits) or DASH}</p>\n'
 
 
+def _noun(key: str, count: Any) -> str:
+    """ "teams" -> "team" when there is one (the counts' keys are plural nouns or states)."""
+    if count == 1 and key in ("teams", "submissions"):
+        return key[:-1]
+    return key
+
+
 def _counts_line(counts: Mapping[str, Any]) -> str:
     order = ("teams", "submissions", "scored", "queued", "running", "failed")
     keys = [k for k in order if k in counts] + sorted(k for k in counts if k not in order)
-    bits = [f'<span class="count count-{_slug(k)}">{_e(counts[k])} {_e(k)}</span>' for k in keys]
+    bits = [
+        f'<span class="count count-{_slug(k)}">{_e(counts[k])} {_e(_noun(k, counts[k]))}</span>'
+        for k in keys
+    ]
     return f'<p class="counts">{" · ".join(bits)}</p>\n' if bits else ""
 
 
@@ -406,7 +420,7 @@ def _evaluator_section(ev: Mapping[str, Any], link: Callable[[int], str]) -> str
         ]
         cells += [_value_cell(metrics.get(c)) for c in columns]
         cells.append(
-            f'<td class="date" data-value="{_e(row.get("date"))}">{_time(row.get("date"))}</td>'
+            f'<td class="date" data-value="{_e(row.get("date"))}">{_time(row.get("date"), day_only=True)}</td>'
         )
         body.append(f'<tr data-submission="{_e(submission)}">{"".join(cells)}</tr>\n')
     parts.append(

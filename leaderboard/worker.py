@@ -61,6 +61,7 @@ class WorkerOptions:
         seed: seed of the confidence intervals.
         max_jobs: stop after this many jobs (None: no limit).
         idle_exit_s: stop after the queue was empty this long (s; None: wait forever).
+        progress: the evaluators' progress bars (on the scoring process's stderr).
     """
 
     lease_s: float = 60.0
@@ -71,6 +72,7 @@ class WorkerOptions:
     seed: int = 0
     max_jobs: int | None = None
     idle_exit_s: float | None = None
+    progress: bool = False
 
     def __post_init__(self) -> None:
         for name in ("lease_s", "poll_s"):
@@ -113,13 +115,18 @@ class _Heartbeat(threading.Thread):
 class _Log:
     """The scoring log: timestamped lines."""
 
-    def __init__(self, clock: Callable[[], float]):
+    def __init__(
+        self, clock: Callable[[], float], echo: Callable[[str], None] | None = None
+    ) -> None:
         self.clock = clock
+        self.echo = echo
         self.lines: list[str] = []
 
     def __call__(self, message: str) -> None:
         for line in message.rstrip("\n").splitlines() or [""]:
             self.lines.append(f"{iso_time(self.clock())} {line}")
+            if self.echo is not None:
+                self.echo(self.lines[-1])
 
     @property
     def text(self) -> str:
@@ -170,6 +177,7 @@ def _scorer_main(
                 backend=options.backend,
                 address=options.address,
                 seed=options.seed,
+                progress=options.progress,
             )
             for name, evaluator in evaluators.items():
                 conn.send(("log", f"{name} v{evaluator.version}: scoring"))
@@ -303,7 +311,12 @@ class Scorer:
 
 
 def score_claim(
-    board: Board, claim: Claim, options: WorkerOptions, scorer: Scorer | None = None
+    board: Board,
+    claim: Claim,
+    options: WorkerOptions,
+    scorer: Scorer | None = None,
+    *,
+    on_log: Callable[[str], None] | None = None,
 ) -> Outcome:
     """Score a claimed submission (in a :class:`Scorer` process) and store the outcome.
 
@@ -315,12 +328,14 @@ def score_claim(
     Args:
         board, claim, options: the board, the worker's claim and how to score.
         scorer: the worker's scoring process (default: one for this job alone).
+        on_log: called with each line of the scoring log as it is written (a local
+            ``dg16m leaderboard submit`` prints them).
 
     Returns:
         ``"scored"``, ``"failed"``, or ``"lost"`` when the lease was lost meanwhile (nothing
         stored; another worker scores it).
     """
-    log = _Log(board.clock)
+    log = _Log(board.clock, on_log)
     log(f"claimed by {claim.worker} (attempt {claim.attempt})")
     try:
         row = board.submission_row(claim.submission_id)

@@ -66,6 +66,7 @@ def test_round_trip(capsys: pytest.CaptureFixture[str], tmp_path: Path, bench: P
     assert code == 0
     assert "#1 pairs (lab-a): scored" in out
     assert "fce" in out
+    assert "fce v1: scoring" in out  # the scoring log as it is written, not silence
     code, out, _ = run(
         capsys, "submit", second, "--team", "lab-b", "--db", db, "--queue-only", "--label", "one"
     )
@@ -84,6 +85,7 @@ def test_round_trip(capsys: pytest.CaptureFixture[str], tmp_path: Path, bench: P
 
     code, out, _ = run(capsys, "show", "--db", db)
     assert code == 0
+    assert "2 teams, 2 submissions" in out
     assert "fce (ranked by fce)" in out
     assert "pairs #1" in out
     assert "one #2" in out

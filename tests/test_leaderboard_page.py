@@ -501,3 +501,37 @@ def test_in_chromium_under_csp(
     team.click()
     assert team.get_attribute("aria-sort") == "ascending"
     assert page_problems(browser) == []
+
+
+def test_the_gsr_table_fits_a_1400_pixel_window(
+    browser: Any, tmp_path: Path, board_view: dict[str, Any]
+) -> None:
+    """All five gsr columns and the date stay in view at 1400 px (the date was cut off)."""
+    import copy
+
+    columns = ["gsr", "gsr_gravity", "gsr_valid", "gsr_valid_gravity", "label_rate"]
+    view = copy.deepcopy(board_view)
+    gsr = next(ev for ev in view["evaluators"] if ev["name"] == "gsr")
+    gsr["columns"] = columns
+    for row in gsr["rows"]:
+        row["label"] = "force-closure pairing"
+        row["metrics"] = {c: rate(0.628, 20, 4) for c in columns}
+    out = write_static(tmp_path / "site", view, {})
+    browser.set_window_size(1400, 900)
+    browser.get((out / "index.html").as_uri())
+    widths = browser.execute_script(
+        "const t = document.querySelector('#ev-gsr table');"
+        "return [t.scrollWidth, t.parentElement.clientWidth];"
+    )
+    assert widths[0] <= widths[1], widths
+    date = browser.execute_script("return document.querySelector('#ev-gsr td.date time').title")
+    assert date == "2026-11-11 06:10 UTC"  # the minute stays in the tooltip
+
+
+def test_counts_read_in_the_singular_for_one() -> None:
+    from leaderboard.page import _counts_line
+
+    line = _counts_line({"teams": 1, "submissions": 1, "scored": 1})
+    assert ">1 team<" in line
+    assert ">1 submission<" in line
+    assert ">2 teams<" in _counts_line({"teams": 2})
