@@ -146,6 +146,39 @@ def remembered_interrupts() -> Iterator[Callable[[], bool]]:
         signal.signal(signal.SIGINT, previous)
 
 
+RAY_CONNECT_TIMEOUT_S = 10.0
+"""How long :func:`check_ray_address` waits for a Ray head's port to answer (s)."""
+
+
+def check_ray_address(address: str, timeout_s: float = RAY_CONNECT_TIMEOUT_S) -> None:
+    """Refuse a ``host:port`` where no Ray head answers, within ``timeout_s`` (``ray.init``
+    itself retries for minutes); ``"auto"`` and ``ray://`` addresses are left to Ray.
+
+    Raises:
+        ParallelError: not ``host:port``, a host that does not resolve, or a port that does not
+            accept a connection in time.
+    """
+    import socket
+
+    if address == "auto" or address.startswith("ray://"):
+        return
+    host, sep, port_text = address.rpartition(":")
+    if not sep or not host or not port_text.isdigit() or not 0 < int(port_text) < 65536:
+        raise ParallelError(
+            f"--address: expected 'auto' or host:port of a Ray head (e.g. 10.0.0.5:6379), found "
+            f"{address!r}"
+        )
+    try:
+        with socket.create_connection((host.strip("[]"), int(port_text)), timeout=timeout_s):
+            pass
+    except OSError as exc:
+        raise ParallelError(
+            f"--address {address}: expected a Ray head answering there, found none within "
+            f"{timeout_s:g} s ({exc.strerror or exc}); start one with 'ray start --head "
+            f"--port {port_text}' or give its address"
+        ) from None
+
+
 def _ray(
     task: Callable[..., Result], items: Sequence[Item], args: tuple[Any, ...], address: str | None
 ) -> Iterator[tuple[Item, Result]]:
@@ -160,6 +193,7 @@ def _ray(
         if address is None:
             ray.init(include_dashboard=False, _node_ip_address="127.0.0.1", log_to_driver=False)
         else:
+            check_ray_address(address)
             ray.init(address=address, include_dashboard=False, log_to_driver=False)
     try:
         remote = ray.remote(max_retries=RAY_MAX_RETRIES)(task)

@@ -97,3 +97,22 @@ def test_ctrl_c_stops_a_pool_without_waiting_for_its_tasks(tmp_path: Path) -> No
     assert "KeyboardInterrupt" in err
     assert len(list(root.glob("started-*"))) == 2  # nothing else started after the signal
     assert not (root / "manifest.json").exists()  # no object was recorded as done
+
+
+def test_a_ray_address_where_nothing_answers_is_refused_at_once() -> None:
+    import socket
+
+    from dataset_gen.parallel import ParallelError, check_ray_address
+
+    check_ray_address("auto")  # left to Ray
+    with socket.socket() as server:  # something answering on loopback
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+        port = server.getsockname()[1]
+        check_ray_address(f"127.0.0.1:{port}")
+    with pytest.raises(ParallelError, match="found none within"):
+        check_ray_address(f"127.0.0.1:{port}", timeout_s=2.0)  # closed now
+    with pytest.raises(ParallelError, match="found none within"):
+        check_ray_address("nowhere.invalid:6379", timeout_s=2.0)
+    with pytest.raises(ParallelError, match="expected 'auto' or host:port"):
+        check_ray_address("nowhere")
