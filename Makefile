@@ -4,7 +4,11 @@
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
-STAMP  := $(VENV)/.installed-stamp
+# What to install: every extra and the test tools by default. A smaller venv for generating and
+# simulating only (no torch, no Ray, no CVXPY): make setup EXTRAS=sim,board,import
+EXTRAS ?= all,dev
+comma  := ,
+STAMP  := $(VENV)/.installed-$(subst $(comma),-,$(EXTRAS))
 DEMO   := runs/demo
 
 .PHONY: setup demo test test-all test-warp lint format clean docs
@@ -14,10 +18,11 @@ setup: $(STAMP)
 $(STAMP): pyproject.toml
 	bash scripts/install_system_deps.sh
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	# torch first and pinned: an unpinned torch pulls gigabytes of CUDA wheels
-	$(BIN)/python -m pip install --quiet torch==2.13.0
-	$(BIN)/python -m pip install --quiet -e '.[all,dev]'
+	$(BIN)/python -m pip install --progress-bar on --upgrade pip
+	# torch first, pinned and the CPU build (only for the learning extras): an unpinned torch
+	# pulls gigabytes of CUDA wheels
+	bash scripts/install_torch.sh $(BIN)/python '$(EXTRAS)'
+	$(BIN)/python -m pip install --progress-bar on -e '.[$(EXTRAS)]'
 	touch $(STAMP)
 
 demo: $(STAMP)
