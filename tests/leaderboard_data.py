@@ -3,8 +3,12 @@ submission files for it (imported as ``leaderboard_data``: pytest puts ``tests/`
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sqlite3
+import threading
+import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -96,3 +100,25 @@ def scored_rows(board: Any, team_name: str, n: int, *, ties: int = 40) -> list[i
         assert board.finish(claim, {"fce": FakeResult((i % ties) / ties)}, "log")
         ids.append(sid)
     return ids
+
+
+@contextlib.contextmanager
+def running_service(board: Any, config: Any) -> Iterator[tuple[str, tuple[str, int]]]:
+    """The service for ``board`` (a ``leaderboard.app.ServiceConfig``) on loopback in a thread;
+    yields its URL and (host, port); stopped and joined (bounded) on exit."""
+    from leaderboard.app import make_server
+
+    server, sock, url = make_server(board, port=0, config=config)
+    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
+    thread.start()
+    for _ in range(200):
+        if server.started:
+            break
+        time.sleep(0.05)
+    assert server.started
+    try:
+        yield url, sock.getsockname()[:2]
+    finally:
+        server.should_exit = True
+        thread.join(30)
+        sock.close()

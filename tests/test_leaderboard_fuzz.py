@@ -7,20 +7,17 @@ from __future__ import annotations
 
 import contextlib
 import socket
-import threading
-import time
 import warnings
-from collections.abc import Iterator
 from typing import Any
 from urllib.parse import quote
 
 import httpx
 import numpy as np
 import pytest
-from leaderboard_data import scored_rows, small_benchmark, valid_submission
+from leaderboard_data import running_service, scored_rows, small_benchmark, valid_submission
 from starlette.exceptions import StarletteDeprecationWarning
 
-from leaderboard.app import SECURITY_HEADERS, ServiceConfig, create_app, make_server
+from leaderboard.app import SECURITY_HEADERS, ServiceConfig, create_app
 from leaderboard.board import Board
 
 with warnings.catch_warnings():  # starlette asks for httpx2, which is not installed
@@ -196,24 +193,6 @@ def test_fuzz_the_app_no_5xx_and_headers_on_every_error(world: dict[str, Any]) -
     assert {200, 401, 404, 405} <= set(statuses), statuses  # the fuzz reaches every kind
 
 
-@contextlib.contextmanager
-def running(board: Board, config: ServiceConfig) -> Iterator[tuple[str, int]]:
-    server, sock, _ = make_server(board, port=0, config=config)
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    for _ in range(200):
-        if server.started:
-            break
-        time.sleep(0.05)
-    assert server.started
-    try:
-        yield sock.getsockname()[:2]
-    finally:
-        server.should_exit = True
-        thread.join(30)
-        sock.close()
-
-
 def _raw_request(rng: np.random.Generator, token: str) -> bytes:
     """Request bytes, often malformed: odd methods, targets, versions, header lines, sizes."""
     method = rng.choice([b"GET"] * 6 + [b"POST", b"HEAD", b"G\x00T", b"", b"get", b"X" * 300])
@@ -276,7 +255,7 @@ def test_fuzz_raw_requests_on_loopback(world: dict[str, Any]) -> None:
     config = ServiceConfig(header_timeout_s=1.0, body_idle_timeout_s=1.0, rate_limit=100_000)
     failures: list[str] = []
     answered = 0
-    with running(world["board"], config) as address:
+    with running_service(world["board"], config) as (_, address):
         for _ in range(RAW_CASES):
             data = _raw_request(rng, world["tokens"][0])
             head = _head_of_answer(address, data)

@@ -21,10 +21,10 @@ from typing import Any
 
 import httpx
 import pytest
-from leaderboard_data import scored_rows, small_benchmark, tree, valid_submission
+from leaderboard_data import running_service, scored_rows, small_benchmark, tree, valid_submission
 from starlette.exceptions import StarletteDeprecationWarning
 
-from leaderboard.app import SECURITY_HEADERS, ServiceConfig, create_app, make_server
+from leaderboard.app import SECURITY_HEADERS, ServiceConfig, create_app
 from leaderboard.board import Board, NotFoundError
 from leaderboard.checks import MAX_ID, check_id
 from leaderboard.worker import Scorer, WorkerOptions, score_claim
@@ -395,20 +395,8 @@ def test_scoring_process_is_reused_and_ends_when_closed(
 @contextlib.contextmanager
 def running(board: Board, config: ServiceConfig) -> Iterator[str]:
     """The service for ``board`` on loopback in a thread; yields its URL."""
-    server, sock, url = make_server(board, port=0, config=config)
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    for _ in range(200):
-        if server.started:
-            break
-        time.sleep(0.05)
-    assert server.started
-    try:
+    with running_service(board, config) as (url, _):
         yield url
-    finally:
-        server.should_exit = True
-        thread.join(30)
-        sock.close()
 
 
 def _address(url: str) -> tuple[str, int]:
