@@ -26,7 +26,8 @@ The build (:func:`build_real_benchmark`)
 :data:`REAL_LIMITS`: an object that gives fewer than ``min_passing`` force-closure-passing
 pairs (checked before its decomposition and before its trials) or whose decomposition,
 sampling or trials run past their budgets is rejected with its stage and replaced by the next
-object of its category's order. Each mesh must match the sha256 the split records (a changed
+object of its category's order; so is a built object whose hulls stand off its mesh by more
+than :data:`MAX_HULL_P95_MM` (p95). Each mesh must match the sha256 the split records (a changed
 mesh is an error, never a silent relabel); the file carries every mesh, so using it needs no
 mesh folder. The build resumes (``OUT/manifest.json``); the split it ends with is written to
 ``OUT/real_split.json`` (copy it over :data:`REAL_SPLIT_FILE` with the file to ship both).
@@ -309,17 +310,8 @@ def build_real_benchmark(
             progress=progress,
             parameters=parameters,
         )
-        new = {
-            i: manifest["entries"][i]
-            for i in ids
-            if manifest["entries"].get(i, {}).get("status") == "failed"
-        }
-        for object_id, entry in new.items():
-            split["rejected"][object_id] = {
-                "stage": entry.get("stage", "load"),
-                "reason": entry.get("rejected", "error"),
-                "error": entry.get("error", ""),
-            }
+        new = rejections(manifest["entries"], ids)
+        split["rejected"].update(new)
         if not new:
             break
     split = with_membership(split)
@@ -328,6 +320,36 @@ def build_real_benchmark(
     write_json_atomic(root / "real_split.json", split)
     path = write_built_benchmark(root, ids, manifest, params, simulator)
     return path, split
+
+
+MAX_HULL_P95_MM = 2.0
+"""The real benchmark admits an object whose CoACD hulls stand off its mesh by at most this
+much (hull-to-mesh p95, mm; the build's manifest records it per object): a coarser one is
+rejected at the decomposition stage and replaced like any other."""
+
+
+def rejections(entries: Mapping[str, Any], ids: Sequence[str]) -> dict[str, dict[str, str]]:
+    """The objects of ``ids`` the build rejects, by id: those that failed (their stage and
+    reason) and those built whose hull-to-mesh p95 is over :data:`MAX_HULL_P95_MM`."""
+    out: dict[str, dict[str, str]] = {}
+    for object_id in ids:
+        entry = entries.get(object_id, {})
+        if entry.get("status") == "failed":
+            out[object_id] = {
+                "stage": entry.get("stage", "load"),
+                "reason": entry.get("rejected", "error"),
+                "error": entry.get("error", ""),
+            }
+            continue
+        p95 = entry.get("hull_deviation_mm", {}).get("p95") if entry.get("status") == "ok" else None
+        if p95 is not None and p95 > MAX_HULL_P95_MM:
+            out[object_id] = {
+                "stage": "decompose",
+                "reason": "hull deviation",
+                "error": f"{object_id}: expected hull-to-mesh p95 <= {MAX_HULL_P95_MM:g} mm, "
+                f"found {p95:g} mm",
+            }
+    return out
 
 
 def _first_per_category(split: Mapping[str, Any], limit: int) -> list[str]:

@@ -41,6 +41,7 @@ from dg16m_env.real_benchmark import (
     make_split,
     read_split,
     real_sources,
+    rejections,
     with_membership,
 )
 
@@ -458,3 +459,19 @@ def test_the_grid_leaves_out_the_slivers_it_flattens() -> None:
     np.testing.assert_array_equal(kept[0].vertices, np.round(box / 5e-5) * 5e-5)
     with pytest.raises(BenchmarkError, match="all 1 flattened"):
         grid_parts(parts[1:], 5e-5, sliver)
+
+
+def test_a_built_object_with_coarse_hulls_is_rejected_and_replaced() -> None:
+    """The per-object target (hull-to-mesh p95 <= 2 mm) is an admission rule: a built object
+    over it is rejected at the decomposition stage, like a failed one, and others stay."""
+    entries = {
+        "a": {"status": "ok", "hull_deviation_mm": {"p95": 0.8}},
+        "b": {"status": "ok", "hull_deviation_mm": {"p95": 2.23}},
+        "c": {"status": "failed", "stage": "screen", "rejected": "too few passing pairs"},
+    }
+    found = rejections(entries, ["a", "b", "c", "d"])
+    assert set(found) == {"b", "c"}
+    assert found["b"]["stage"] == "decompose"
+    assert found["b"]["reason"] == "hull deviation"
+    assert "expected hull-to-mesh p95 <= 2 mm, found 2.23 mm" in found["b"]["error"]
+    assert found["c"] == {"stage": "screen", "reason": "too few passing pairs", "error": ""}
