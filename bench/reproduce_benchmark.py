@@ -7,7 +7,7 @@ probabilities at both levels), every trial's status and failing phase (nominal a
 the nominal trial's discrete results, and how far its floating-point measures (slip, rotation,
 penetration) moved. On the machine that built
 the file everything is identical; on another CPU the physics differs in the last bits and, after
-contact chaos, by more. This is how the README's reproducibility claim was measured.
+contact chaos, by more. This is how the user guide's reproducibility claim (docs/guide.md) was measured.
 
     python bench/reproduce_benchmark.py --limit 20 --workers 2
     python bench/reproduce_benchmark.py --workers 16 --out runs/reproduce.json   # all 300 objects
