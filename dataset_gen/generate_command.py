@@ -21,6 +21,9 @@ GENERATE_EXAMPLES = (
     "  dg16m generate --meshes path/to/meshes --scale 0.001 --out runs/mine\n"
     "  # pairs that also withstand the simulation protocol's pushes (beyond the paper)\n"
     "  dg16m generate --meshes tests/data/meshes --out runs/robust --selection robust\n"
+    "  # a subset of a mesh folder, e.g. the real benchmark's training objects\n"
+    "  dg16m generate --meshes runs/real_meshes --ids dg16m_env/data/real_split.json:train \\\n"
+    "      --out runs/real_train\n"
     "  # the same task on a Ray cluster (or a local Ray on loopback without --address)\n"
     "  dg16m generate --procedural 4000 --out runs/dg16m --backend ray --address auto\n"
     "  # rerun the same command to resume an interrupted run: finished objects are skipped\n"
@@ -82,6 +85,13 @@ def _register_generate(subparsers: Any) -> None:
         choices=("train", "benchmark"),
         default="train",
         help="procedural split (benchmark: the fixed 300 objects; N then takes the first N)",
+    )
+    gen.add_argument(
+        "--ids",
+        default=None,
+        metavar="FILE|a,b,c",
+        help="with --meshes: only these objects (file stems), from a file of ids (one per line) "
+        "or a comma-separated list",
     )
     gen.add_argument("--scale", type=float, default=None, help="scale for --meshes files")
     gen.add_argument(
@@ -164,10 +174,15 @@ def _generate(args: argparse.Namespace) -> int:
 def _sources(args: argparse.Namespace) -> list[Any]:
     from .generate import GenerationError
     from .procedural import benchmark_specs, object_specs
-    from .sources import mesh_sources, procedural_sources
+    from .sources import mesh_sources, procedural_sources, read_ids, select_sources
 
     if args.meshes is not None:
-        return mesh_sources(args.meshes, scale=args.scale, allow_any_size=args.allow_any_size)
+        sources = mesh_sources(args.meshes, scale=args.scale, allow_any_size=args.allow_any_size)
+        return sources if args.ids is None else select_sources(sources, read_ids(args.ids))
+    if args.ids is not None:
+        raise GenerationError(
+            "--ids: expected --meshes (it selects mesh files), found --procedural"
+        )
     if args.procedural < 1:
         raise GenerationError(f"--procedural: expected N >= 1, found {args.procedural}")
     if args.split == "benchmark":

@@ -143,3 +143,56 @@ def procedural_sources(specs: Sequence[tuple[str, int]]) -> list[ObjectSource]:
         ObjectSource(object_id=procedural_id(family, seed), family=family, family_seed=seed)
         for family, seed in specs
     ]
+
+
+def read_ids(text: str) -> list[str]:
+    """Object ids from ``text``: a file (one id per line; ``#`` starts a comment), a JSON file
+    and a key holding a list of ids (``split.json:train``, e.g. the real benchmark's shipped
+    ``dg16m_env/data/real_split.json``), or ``a,b,c``.
+
+    Raises:
+        MeshError: no id in it, or a JSON key that is not a list of ids.
+    """
+    import json
+
+    path = Path(text)
+    file, _, key = text.rpartition(":")
+    if not path.is_file() and file.endswith(".json") and Path(file).is_file():
+        try:
+            value = json.loads(Path(file).read_text("utf-8")).get(key)
+        except (ValueError, AttributeError) as exc:
+            raise MeshError(f"--ids {text}: expected a JSON object, found {exc}") from None
+        if not isinstance(value, list) or not all(isinstance(i, str) for i in value):
+            raise MeshError(
+                f"--ids {text}: expected key {key!r} to hold a list of ids, found "
+                f"{type(value).__name__}"
+            )
+        ids = list(value)
+    elif path.is_file():
+        ids = [line.split("#")[0].strip() for line in path.read_text("utf-8").splitlines()]
+    else:
+        ids = [part.strip() for part in text.split(",")]
+    ids = [i for i in ids if i]
+    if not ids:
+        raise MeshError(f"--ids {text}: expected object ids (a file of ids or a,b,c), found none")
+    return ids
+
+
+def select_sources(sources: Sequence[ObjectSource], ids: Sequence[str]) -> list[ObjectSource]:
+    """The sources of ``ids``, in that order.
+
+    Raises:
+        MeshError: an id twice, or ids with no source (named, with an example of the known).
+    """
+    by_id = {s.object_id: s for s in sources}
+    unknown = [i for i in ids if i not in by_id]
+    if unknown:
+        example = next(iter(by_id), "?")
+        raise MeshError(
+            f"--ids: expected ids of the mesh folder's files (e.g. {example!r}), found "
+            f"{len(unknown)} unknown: {', '.join(unknown[:5])}"
+        )
+    if len(set(ids)) != len(ids):
+        twice = next(i for i in ids if list(ids).count(i) > 1)
+        raise MeshError(f"--ids: expected each id once, found {twice!r} twice")
+    return [by_id[i] for i in ids]

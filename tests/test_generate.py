@@ -108,6 +108,39 @@ def test_meshes_are_not_merged_into_a_procedural_dataset(tmp_path: Path) -> None
     assert mine["entries"]["ladder"]["source"] == "mesh"
 
 
+def test_ids_select_a_subset_of_a_mesh_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--ids takes a file of ids, a JSON file's list (split.json:train) or a,b,c; unknown ids
+    and --ids without --meshes are refused before anything runs."""
+    import json
+
+    from dataset_gen.errors import MeshError
+    from dataset_gen.sources import read_ids, select_sources
+
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    for family, seed in SPECS:
+        make_procedural_object(family, seed).mesh.export(meshes / f"{family}.obj")
+    (tmp_path / "ids.txt").write_text("# two of them\nladder\ncrate  # boxy\n")
+    (tmp_path / "split.json").write_text(json.dumps({"train": ["crate"], "bad": 3}))
+    assert read_ids(str(tmp_path / "ids.txt")) == ["ladder", "crate"]
+    assert read_ids(f"{tmp_path / 'split.json'}:train") == ["crate"]
+    assert read_ids("table, crate") == ["table", "crate"]
+    with pytest.raises(MeshError, match="expected key 'bad' to hold a list of ids, found int"):
+        read_ids(f"{tmp_path / 'split.json'}:bad")
+    with pytest.raises(MeshError, match="found 1 unknown: chair"):
+        select_sources(mesh_sources(meshes), ["table", "chair"])
+    with pytest.raises(MeshError, match="expected each id once"):
+        select_sources(mesh_sources(meshes), ["table", "table"])
+    out = tmp_path / "out"
+    argv = ["generate", "--meshes", str(meshes), "--ids", f"{tmp_path / 'split.json'}:train"]
+    assert main([*argv, "--out", str(out), "--grasps", "60", "--no-progress"]) == 0
+    assert sorted(read_manifest(out)["entries"]) == ["crate"]
+    assert main(["generate", "--procedural", "1", "--ids", "a", "--out", str(tmp_path / "p")]) == 2
+    assert "--ids: expected --meshes" in capsys.readouterr().err
+
+
 def test_kill_9_then_resume_gives_the_same_bytes(tmp_path: Path) -> None:
     reference = tmp_path / "reference"
     generate_dataset(procedural_sources(SPECS), reference, SMALL, progress=False)
