@@ -22,7 +22,7 @@ GENERATE_EXAMPLES = (
     "  # pairs that also withstand the simulation protocol's pushes (beyond the paper)\n"
     "  dg16m generate --meshes tests/data/meshes --out runs/robust --selection robust\n"
     "  # a subset of a mesh folder, e.g. the real benchmark's training objects\n"
-    "  dg16m generate --meshes runs/real_meshes --ids dg16m_env/data/real_split.json:train \\\n"
+    "  dg16m generate --meshes runs/real_meshes --ids real_split.json:train \\\n"
     "      --out runs/real_train\n"
     "  # the same task on a Ray cluster (or a local Ray on loopback without --address)\n"
     "  dg16m generate --procedural 4000 --out runs/dg16m --backend ray --address auto\n"

@@ -148,7 +148,7 @@ def procedural_sources(specs: Sequence[tuple[str, int]]) -> list[ObjectSource]:
 def read_ids(text: str) -> list[str]:
     """Object ids from ``text``: a file (one id per line; ``#`` starts a comment), a JSON file
     and a key holding a list of ids (``split.json:train``, e.g. the real benchmark's shipped
-    ``dg16m_env/data/real_split.json``), or ``a,b,c``.
+    split file), or ``a,b,c``.
 
     Raises:
         MeshError: no id in it, or a JSON key that is not a list of ids.
