@@ -145,10 +145,10 @@ def procedural_sources(specs: Sequence[tuple[str, int]]) -> list[ObjectSource]:
     ]
 
 
-def read_ids(text: str) -> list[str]:
+def read_ids(text: str, flag: str = "--ids") -> list[str]:
     """Object ids from ``text``: a file (one id per line; ``#`` starts a comment), a JSON file
     and a key holding a list of ids (``split.json:train``, e.g. the real benchmark's shipped
-    split file), or ``a,b,c``.
+    split file), or ``a,b,c``. ``flag`` names the option in messages.
 
     Raises:
         MeshError: no id in it, or a JSON key that is not a list of ids.
@@ -161,10 +161,10 @@ def read_ids(text: str) -> list[str]:
         try:
             value = json.loads(Path(file).read_text("utf-8")).get(key)
         except (ValueError, AttributeError) as exc:
-            raise MeshError(f"--ids {text}: expected a JSON object, found {exc}") from None
+            raise MeshError(f"{flag} {text}: expected a JSON object, found {exc}") from None
         if not isinstance(value, list) or not all(isinstance(i, str) for i in value):
             raise MeshError(
-                f"--ids {text}: expected key {key!r} to hold a list of ids, found "
+                f"{flag} {text}: expected key {key!r} to hold a list of ids, found "
                 f"{type(value).__name__}"
             )
         ids = list(value)
@@ -174,7 +174,7 @@ def read_ids(text: str) -> list[str]:
         ids = [part.strip() for part in text.split(",")]
     ids = [i for i in ids if i]
     if not ids:
-        raise MeshError(f"--ids {text}: expected object ids (a file of ids or a,b,c), found none")
+        raise MeshError(f"{flag} {text}: expected object ids (a file of ids or a,b,c), found none")
     return ids
 
 

@@ -154,7 +154,13 @@ from dataset_gen.parameters import PAPER
 from dataset_gen.procedural import benchmark_specs
 from dataset_gen.robust import robust_pairs
 from dataset_gen.sampling import sample_antipodal_grasps
-from dataset_gen.sources import ObjectSource, mesh_sources, object_seed, procedural_sources
+from dataset_gen.sources import (
+    ObjectSource,
+    mesh_sources,
+    object_seed,
+    procedural_sources,
+    read_ids,
+)
 from dg16m_env.labels import (
     LEVELS,
     GraspLabels,
@@ -1559,17 +1565,12 @@ def procedural_benchmark_sources(limit: int | None = None) -> list[BenchmarkSour
 
 
 def read_split(split: str) -> list[str]:
-    """Object ids from a split: a text file (one id per line, ``#`` comments) or ``a,b,c``."""
-    path = Path(split)
-    if path.is_file():
-        lines = path.read_text(encoding="utf-8").splitlines()
-        ids = [line.split("#")[0].strip() for line in lines]
-    else:
-        ids = [part.strip() for part in split.split(",")]
-    ids = [i for i in ids if i]
-    if not ids:
-        raise BenchmarkError(f"--split {split}: expected object ids (a file or a,b,c), found none")
-    return ids
+    """Object ids from a split (:func:`dataset_gen.sources.read_ids`): a text file (one id per
+    line, ``#`` comments), a JSON file's list (``split.json:key``) or ``a,b,c``."""
+    try:
+        return read_ids(split, flag="--split")
+    except MeshError as exc:
+        raise BenchmarkError(str(exc)) from None
 
 
 def split_id(name: str) -> str:
