@@ -262,15 +262,19 @@ def _object_bounds(scene: Scene, data: mujoco.MjData) -> tuple[np.ndarray, float
     return centre, max(radius, 1e-3)
 
 
+def _start_data(scene: Scene) -> mujoco.MjData:
+    """The scene's data at the start of a trial (positions computed)."""
+    data = mujoco.MjData(scene.model)
+    mujoco.mj_setState(scene.model, data, initial_state(scene), STATE_SPEC)
+    mujoco.mj_kinematics(scene.model, data)
+    return data
+
+
 def default_camera(scene: Scene, data: mujoco.MjData | None = None) -> mujoco.MjvCamera:
     """A free camera at :data:`DEFAULT_AZIMUTH` / :data:`DEFAULT_ELEVATION`, looking at the
     object's centre (at the start of a trial) from :data:`DISTANCE_FACTOR` times its bounding
     radius."""
-    if data is None:
-        data = mujoco.MjData(scene.model)
-        mujoco.mj_setState(scene.model, data, initial_state(scene), STATE_SPEC)
-        mujoco.mj_kinematics(scene.model, data)
-    centre, radius = _object_bounds(scene, data)
+    centre, radius = _object_bounds(scene, _start_data(scene) if data is None else data)
     camera = mujoco.MjvCamera()
     camera.type = mujoco.mjtCamera.mjCAMERA_FREE
     camera.lookat[:] = centre
@@ -302,10 +306,7 @@ def hands_view(scene: Scene, dual_grasp: np.ndarray) -> dict[str, Any]:
     """
     grasp = check_dual_grasps(np.asarray(dual_grasp)[None])
     centres = grasp_centres(scene, grasp)[0]
-    data = mujoco.MjData(scene.model)
-    mujoco.mj_setState(scene.model, data, initial_state(scene), STATE_SPEC)
-    mujoco.mj_kinematics(scene.model, data)
-    centre, radius = _object_bounds(scene, data)
+    centre, radius = _object_bounds(scene, _start_data(scene))
     across = centres[1, :2] - centres[0, :2]
     default = math.radians(DEFAULT_AZIMUTH)
     forward = np.array([math.cos(default), math.sin(default)])  # camera -> scene, horizontal
