@@ -336,29 +336,14 @@ def _count(n: int, noun: str) -> str:
     return f"{n} {noun}" + ("" if n == 1 else "s")
 
 
-def _readable_hdf5(path: Path, what: str) -> None:
-    """Refuse (exit 2, as every command does for input it cannot read) a path that is not an
-    HDF5 file HDF5 can open; what opens is then checked and its problems listed (exit 1)."""
-    import h5py
-
-    if not path.is_file():
-        found = "a folder" if path.is_dir() else "nothing"
-        raise EvaluateCommandError(f"{path}: expected a {what} file (HDF5), found {found} there")
-    try:
-        with h5py.File(path, "r"):
-            pass
-    except OSError as exc:
-        raise EvaluateCommandError(
-            f"{path}: expected a {what} file HDF5 can open, found one it cannot (truncated or "
-            f"not HDF5: {exc})"
-        ) from None
-
-
 def _validate(args: argparse.Namespace) -> int:
+    from dataset_gen.io import open_hdf5
     from dg16m_env.evaluators import load_benchmark_ref
     from dg16m_env.submission import validate_submission
 
-    _readable_hdf5(args.file, "submission")
+    # a file that cannot be read is bad input (exit 2); what opens is checked (problems: exit 1)
+    with open_hdf5(args.file, "HDF5 submission file"):
+        pass
     ref = load_benchmark_ref(args.benchmark, args.mesh_root)
     problems = validate_submission(
         args.file, object_ids=ref.object_ids, benchmark_sha256=ref.sha256, embedded=ref.embedded

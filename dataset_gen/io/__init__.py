@@ -27,7 +27,7 @@ module                             contents
 from __future__ import annotations
 
 from ._checks import RIGID_ATOL, PathLike
-from ._hdf5 import CHUNK_BYTES, write_array
+from ._hdf5 import CHUNK_BYTES, open_hdf5, write_array
 from .acronym import (
     ACRONYM_REQUIRED_KEYS,
     ACRONYM_TO_DG16M,
@@ -91,6 +91,7 @@ __all__ = [
     "dg16m_to_acronym",
     "manifest_entry_path",
     "new_manifest",
+    "open_hdf5",
     "package_version",
     "read_acronym",
     "read_dg16m",

@@ -22,12 +22,14 @@ CHUNK_BYTES = 512 * 1024
 """Target chunk size of compressed datasets (whole rows; below h5py's 1 MiB chunk cache)."""
 
 
-def _open_h5(path: Path) -> h5py.File:
-    """Open a user's HDF5 file for reading, turning every failure into :class:`GraspFileError`."""
+def open_hdf5(path: Path, what: str = "HDF5 grasp file") -> h5py.File:
+    """Open a user's HDF5 file (``what``, for messages) for reading, turning every failure into
+    :class:`GraspFileError`."""
+    path = Path(path)
     if not path.exists():
-        raise GraspFileError(f"{path}: expected an HDF5 grasp file, found nothing at this path")
+        raise GraspFileError(f"{path}: expected an {what}, found nothing at this path")
     if not path.is_file():
-        raise GraspFileError(f"{path}: expected an HDF5 grasp file, found a directory/non-file")
+        raise GraspFileError(f"{path}: expected an {what}, found a directory/non-file")
     try:
         return h5py.File(path, "r")
     except Exception as exc:  # h5py raises OSError, ValueError, ... for foreign files

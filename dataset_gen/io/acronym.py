@@ -42,10 +42,10 @@ from ._checks import (
 from ._hdf5 import (
     _check_dataset,
     _check_present,
-    _open_h5,
     _read_numeric,
     _read_scalar,
     _read_string,
+    open_hdf5,
 )
 
 ACRONYM_REQUIRED_KEYS = (
@@ -205,7 +205,7 @@ def read_acronym(path: PathLike) -> AcronymGrasps:
             or non-rigid transforms, labels other than 0/1, bad optional fields.
     """
     path = Path(path)
-    with _open_h5(path) as f:
+    with open_hdf5(path) as f:
         _check_present(path, f, ACRONYM_REQUIRED_KEYS, "ACRONYM grasp")
         ds = f["grasps/transforms"]
         if len(ds.shape) != 3 or ds.shape[1:] != (4, 4):

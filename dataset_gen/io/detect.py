@@ -8,14 +8,14 @@ from typing import Literal
 from dataset_gen.errors import GraspFileError
 
 from ._checks import PathLike
-from ._hdf5 import _open_h5
+from ._hdf5 import open_hdf5
 
 
 def detect_format(path: PathLike) -> Literal["dg16m", "acronym"]:
     """Which grasp file format ``path`` holds: ``"dg16m"`` (``grasps/grasps``) or ``"acronym"``
     (``grasps/transforms``). Raises :class:`GraspFileError` for anything else."""
     path = Path(path)
-    with _open_h5(path) as f:
+    with open_hdf5(path) as f:
         if "grasps/grasps" in f:
             return "dg16m"
         if "grasps/transforms" in f:

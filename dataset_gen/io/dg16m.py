@@ -76,10 +76,10 @@ from ._checks import (
 from ._hdf5 import (
     _check_dataset,
     _check_present,
-    _open_h5,
     _read_numeric,
     _read_scalar,
     _read_string,
+    open_hdf5,
     write_array,
 )
 from .versions import SCHEMA_VERSION, SUPPORTED_SCHEMA_VERSIONS
@@ -400,7 +400,7 @@ def read_dg16m(path: PathLike) -> DualGraspSet:
             repeated or overlapping, or the ``dg16m/`` group is malformed.
     """
     path = Path(path)
-    with _open_h5(path) as f:
+    with open_hdf5(path) as f:
         _check_present(path, f, RELEASE_KEYS, "DG16M release")
         float_keys = RELEASE_KEYS[:4]
         index_keys = RELEASE_KEYS[4:6]
