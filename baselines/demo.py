@@ -319,18 +319,12 @@ def _summary(out: Path, record: dict[str, Any], stream: Any) -> None:
     print("\n" + NEXT_STEPS.format(db=out / "leaderboard" / "board.db"), file=stream, end="")
 
 
-def _rates(scores: Any) -> list[str]:
-    """``name rate%`` of the headline metrics in an ``evaluate --out`` file."""
-    found: list[str] = []
-    results = scores.get("results", scores) if isinstance(scores, dict) else {}
-    items = results.values() if isinstance(results, dict) else results
-    for result in items:
-        metrics = result.get("metrics", {}) if isinstance(result, dict) else {}
-        for name in ("fce", "gsr"):
-            metric = metrics.get(name)
-            if isinstance(metric, dict) and isinstance(metric.get("rate"), (int, float)):
-                found.append(f"{name} {100 * metric['rate']:.1f}%")
-    return found
+def _rates(scores: dict[str, Any]) -> list[str]:
+    """``name rate%`` of each evaluator's headline metric in a ``dg16m evaluate --out`` file."""
+    return [
+        f"{name} {100 * result['metrics'][result['headline']]['rate']:.1f}%"
+        for name, result in scores["results"].items()
+    ]
 
 
 def _handler(args: argparse.Namespace) -> int:
