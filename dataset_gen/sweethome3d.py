@@ -9,10 +9,13 @@ Licences are per library (``/usr/share/doc/sweethome3d-furniture/copyright``): C
 BlendSwap-CC-0, CC-BY-3.0 for the others; BlendSwap models carry their own licence files too.
 
 Which models are dual-arm objects (:func:`exclusion_reason`, in this order): not people
-(category "Characters"), doors or windows, staircases, lights (category or a light source),
-vehicles; not plants or textiles (a word of :data:`PLANT_WORDS` / :data:`TEXTILE_WORDS` in the
-name or tags); not flat sheets or poles (catalogue longest / shortest side at most
-:data:`MAX_ASPECT`).
+(category "Characters"), doors or windows, staircases or vehicles; not plants (a word of
+:data:`PLANT_WORDS` in the name or tags); not textiles (the name's head noun, :func:`head_word`,
+is one of :data:`TEXTILE_WORDS`: a "Towel" or "Hanging clothes", not a "Towel rack", a "Clothes
+basket" or a "Chair with cushion"); not flat sheets or poles (catalogue longest / shortest side
+at most :data:`MAX_ASPECT`). Lamps are rigid objects and are kept (the first split left out the
+Lights category and every model with a light source, and any model with a textile word in its
+name or tags: :data:`FILTER_VERSION` 1).
 
 How a model becomes an object (:func:`import_model`), all in metres:
 
@@ -25,7 +28,10 @@ How a model becomes an object (:func:`import_model`), all in metres:
    into the same range);
 3. repaired into one watertight volume of at most ``target_faces`` faces
    (:func:`dataset_gen.repair.repair_mesh`), and the deviation from the scaled source surface
-   measured both ways (:func:`dataset_gen.repair.surface_deviation`).
+   measured both ways (:func:`dataset_gen.repair.surface_deviation`). A repair that keeps only
+   part of the model (an axis shorter than the source's by more than
+   :data:`dataset_gen.repair.MAX_SIZE_LOSS` of its longest side, again on a grid of half the
+   voxel size) fails: thin pipes or straps vanished, or only the largest of its pieces was left.
 
 :func:`import_library` writes ``<id>.obj`` files, a ``manifest.json`` (per object: library,
 model path, name, category, creator, licence and its files, catalogue size, rotation, scale
@@ -81,8 +87,13 @@ LIBRARY_COPYRIGHT: Mapping[str, str] = {
     "Scopia": "2010-2012, Scopia Visual Interfaces Systems, s.l.",
 }
 
-EXCLUDED_CATEGORIES = ("Characters", "Doors and windows", "Staircases", "Lights", "Vehicles")
-"""Catalogue categories that are not dual-arm objects (people, openings, stairs, lights, cars)."""
+EXCLUDED_CATEGORIES = ("Characters", "Doors and windows", "Staircases", "Vehicles")
+"""Catalogue categories that are not dual-arm objects (people, openings, stairs, cars)."""
+
+FILTER_VERSION = 2
+"""The version of :func:`exclusion_reason`: 1 also left out lamps (the Lights category and any
+light source) and every model with a textile word anywhere in its name or tags (a washing
+machine tagged "clothes"); 2 keeps both (module docstring)."""
 
 PLANT_WORDS = (
     "plant", "tree", "flower", "flowers", "bush", "palm", "cactus", "lily", "orchid", "bonsai",
@@ -91,7 +102,7 @@ PLANT_WORDS = (
 TEXTILE_WORDS = (
     "rug", "carpet", "curtain", "curtains", "towel", "towels", "blanket", "cushion", "pillow",
     "drape", "drapes", "mat", "doormat", "tablecloth", "duvet", "sheet", "sheets", "clothes",
-    "shirt", "dress", "coat", "jacket",
+    "shirt", "dress", "coat", "jacket", "bathmat", "glove", "skirt", "trousers", "suit",
 )  # fmt: skip
 
 MAX_ASPECT = 8.0
@@ -297,19 +308,27 @@ def _words(text: str) -> set[str]:
     return set(re.findall(r"[a-z]+", text.lower()))
 
 
+def head_word(name: str) -> str:
+    """The head noun of an English catalogue name: the last word before "with", "and", "for",
+    "of", "on", "in", a comma or a bracket ("Paper towel holder" -> "holder", "Chair with
+    cushion" -> "chair"); "" for a name without letters."""
+    first = re.split(r"\b(?:with|and|for|of|on|in)\b|[,(]", name.lower())[0]
+    words = re.findall(r"[a-z]+", first)
+    return words[-1] if words else ""
+
+
 def exclusion_reason(entry: CatalogEntry) -> str | None:
     """Why a model is not a dual-arm object (module docstring), or ``None`` if it is one."""
     if entry.category in EXCLUDED_CATEGORIES:
         return f"category {entry.category!r}"
     if entry.door_or_window:
         return "door or window"
-    if entry.light:
-        return "light source"
     words = _words(f"{entry.name} {entry.tags}")
     if words & set(PLANT_WORDS):
         return f"plant ({', '.join(sorted(words & set(PLANT_WORDS)))})"
-    if words & set(TEXTILE_WORDS):
-        return f"textile ({', '.join(sorted(words & set(TEXTILE_WORDS)))})"
+    head = head_word(entry.name)
+    if head in TEXTILE_WORDS:
+        return f"textile ({head})"
     size = entry.size_m
     aspect = float(size.max() / size.min())
     if aspect > MAX_ASPECT:
@@ -458,12 +477,23 @@ def modification_note(sizing: Mapping[str, Any], pitch: float, faces: int) -> st
 # --------------------------------------------------------------------------------------------
 
 
-def attribution_text(entries: Sequence[Mapping[str, Any]]) -> str:
-    """``ATTRIBUTION.md`` for imported objects (manifest entries with ``status`` "ok")."""
+def attribution_text(
+    entries: Sequence[Mapping[str, Any]],
+    *,
+    subject: str = "The meshes in this folder",
+    note: str = "",
+) -> str:
+    """``ATTRIBUTION.md`` for imported objects (manifest entries with ``status`` "ok").
+
+    Args:
+        entries: the import manifest's entries of the objects to attribute.
+        subject: what holds the derived meshes (the first words of the text).
+        note: a closing paragraph (what the file beside it carries), or none.
+    """
     lines = [
         "# Attribution",
         "",
-        "The meshes in this folder are derived from the 3D models of Debian's",
+        f"{subject} are derived from the 3D models of Debian's",
         "`sweethome3d-furniture` package (Sweet Home 3D additional furniture libraries,",
         "https://www.sweethome3d.com/importModels.jsp). Each model keeps its licence:",
         "CC-BY-3.0 (https://creativecommons.org/licenses/by/3.0/) or CC0-1.0",
@@ -483,6 +513,8 @@ def attribution_text(entries: Sequence[Mapping[str, Any]]) -> str:
             f"| {src['object_id']} | {src['name']} (`{src['model']}`) | {src['creator'] or 'unknown'} "
             f"| {library} | {src['licence']}{files} | {entry['modified']} |"
         )
+    if note:
+        lines += ["", note]
     return "\n".join(lines) + "\n"
 
 

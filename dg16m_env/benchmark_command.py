@@ -218,17 +218,25 @@ def _register_real(sub: Any) -> None:
         sub,
         "split-real",
         "Make the real benchmark's split from an import folder (stratified by category).",
-        "  dg16m benchmark split-real --meshes runs/real_meshes --out real_split.json\n",
+        "  dg16m benchmark split-real --meshes runs/real_meshes --out real_split.json\n"
+        "  # bring a split up to date with a revised import, keeping its orders\n"
+        "  dg16m benchmark split-real --meshes runs/real_meshes --revise real_split.json \\\n"
+        "      --note 'filter v2: lamps kept' --out real_split.json\n",
         description=(
             f"Order each category's imported objects by a seeded permutation and give each "
             f"category its share of the {REAL_SIZE} benchmark objects; the rest is the training "
-            "split. Records every object's OBJ sha256 (the build refuses a changed mesh)."
+            "split. Records every object's OBJ sha256 (the build refuses a changed mesh). With "
+            "--revise, an existing split is updated instead: ids the import no longer has are "
+            "rejected at stage 'import', new ones are appended to their category's order "
+            "(seeded), quotas are shared again, and the revision is recorded."
         ),
     )
     split.add_argument("--meshes", type=Path, required=True, help="an import-sweethome3d folder")
     split.add_argument("--out", type=Path, required=True, help="the split file to write (JSON)")
     split.add_argument("--size", type=int, default=REAL_SIZE, help=f"default: {REAL_SIZE}")
     split.add_argument("--seed", type=int, default=0, help="default: 0")
+    split.add_argument("--revise", type=Path, help="a split to bring up to date (keeps its orders)")
+    split.add_argument("--note", default="", help="--revise: why (recorded in the split)")
     split.set_defaults(handler=_split_real)
 
     build = add_command(
@@ -259,9 +267,27 @@ def _register_real(sub: Any) -> None:
 
 
 def _split_real(args: argparse.Namespace) -> int:
-    from dg16m_env.real_benchmark import import_entries, make_split, write_split
+    from dg16m_env.benchmark import BenchmarkError
+    from dg16m_env.real_benchmark import (
+        import_entries,
+        make_split,
+        read_split,
+        revise_split,
+        write_split,
+    )
 
-    split = make_split(import_entries(args.meshes), size=args.size, seed=args.seed)
+    entries = import_entries(args.meshes)
+    if args.revise is not None:
+        if not args.note:
+            raise BenchmarkError("--revise: expected --note saying why, found none")
+        split = revise_split(read_split(args.revise), entries, note=args.note)
+        last = split["revisions"][-1]
+        print(
+            f"revision {last['revision']}: {len(last['added'])} added, {len(last['removed'])} "
+            f"rejected at stage 'import', {len(last['changed_sha256'])} with new bytes"
+        )
+    else:
+        split = make_split(entries, size=args.size, seed=args.seed)
     write_split(args.out, split)
     quotas = ", ".join(f"{c} {v['quota']}" for c, v in split["categories"].items())
     print(

@@ -43,10 +43,12 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.atomic import write_json_atomic
+from dataset_gen.atomic import write_bytes_atomic, write_json_atomic, write_text_atomic
 from dataset_gen.decomposition import DecompositionParameters
 from dataset_gen.hashing import file_sha256
+from dataset_gen.io.manifest import read_manifest, write_manifest
 from dataset_gen.sources import ObjectSource, object_seed
+from dataset_gen.sweethome3d import attribution_text
 from dg16m_env.benchmark import (
     BenchmarkError,
     BenchmarkParameters,
@@ -137,11 +139,7 @@ def make_split(
     by_category: dict[str, list[str]] = {}
     for object_id in sorted(ok):
         by_category.setdefault(_category(ok[object_id]), []).append(object_id)
-    shares = {c: size * len(ids) / len(ok) for c, ids in by_category.items()}
-    quota = {c: int(np.floor(v)) for c, v in shares.items()}
-    left = size - sum(quota.values())
-    for c in sorted(shares, key=lambda c: (-(shares[c] - quota[c]), c))[:left]:
-        quota[c] += 1
+    quota = _quotas({c: len(ids) for c, ids in by_category.items()}, size)
     categories = {}
     for c in sorted(by_category):
         rng = np.random.default_rng(object_seed(seed, f"real-split:{c}"))
@@ -161,6 +159,87 @@ def make_split(
         "sha256": {k: str(ok[k]["sha256"]) for k in sorted(ok)},
     }
     return with_membership(split)
+
+
+def _quotas(counts: Mapping[str, int], size: int) -> dict[str, int]:
+    """``size`` places shared in proportion to ``counts`` (largest remainders; ties by name)."""
+    total = sum(counts.values())
+    shares = {c: size * n / total for c, n in counts.items()}
+    quota = {c: int(np.floor(v)) for c, v in shares.items()}
+    left = size - sum(quota.values())
+    for c in sorted(shares, key=lambda c: (-(shares[c] - quota[c]), c))[:left]:
+        quota[c] += 1
+    return quota
+
+
+def revise_split(
+    split: Mapping[str, Any], entries: Mapping[str, Mapping[str, Any]], *, note: str
+) -> dict[str, Any]:
+    """``split`` brought up to date with a revised import (``entries``), keeping every order it
+    has, so that objects already built keep their places:
+
+    * an ordered id the import now fails (or lost) is rejected at stage ``"import"`` with the
+      import's error;
+    * an ordered id whose OBJ bytes changed is kept with its new sha256 and listed (its build,
+      if any, is stale and must be redone);
+    * imported ids that no order holds are appended to their category's order in a seeded
+      permutation (a new category gets one), after every id already there;
+    * quotas are shared again in proportion to the imported objects per category.
+
+    The change is recorded under ``revisions`` (with ``note``).
+
+    Raises:
+        BenchmarkError: fewer usable imported objects than the split's size.
+    """
+    out = dict(check_split(dict(split)))
+    ok = {k: e for k, e in entries.items() if e.get("status") == "ok"}
+    if len(ok) < out["size"]:
+        raise BenchmarkError(f"expected at least {out['size']} imported objects, found {len(ok)}")
+    revision = len(out.get("revisions", [])) + 1
+    rejected = dict(out["rejected"])
+    categories = {
+        c: {"quota": v["quota"], "order": list(v["order"])} for c, v in out["categories"].items()
+    }
+    ordered = {i for c in categories.values() for i in c["order"]}
+    removed = sorted(i for i in ordered if i not in ok and i not in rejected)
+    for object_id in removed:
+        error = str(entries.get(object_id, {}).get("error", "not in the import"))
+        rejected[object_id] = {"stage": "import", "reason": "import failed", "error": error}
+    old_sha = out["sha256"]
+    changed = sorted(i for i in ordered if i in ok and old_sha.get(i) != ok[i]["sha256"])
+    added: dict[str, list[str]] = {}
+    for object_id in sorted(set(ok) - ordered):
+        added.setdefault(_category(ok[object_id]), []).append(object_id)
+    for c, ids in sorted(added.items()):
+        rng = np.random.default_rng(object_seed(out["seed"], f"real-split-revision-{revision}:{c}"))
+        categories.setdefault(c, {"quota": 0, "order": []})["order"] += [
+            ids[i] for i in rng.permutation(len(ids))
+        ]
+    counts = {c: sum(i in ok for i in v["order"]) for c, v in categories.items()}
+    for c, quota in _quotas(counts, out["size"]).items():
+        categories[c]["quota"] = quota
+    out["categories"] = {c: categories[c] for c in sorted(categories)}
+    out["rejected"] = rejected
+    out["import_failed"] = {
+        k: str(e.get("error", ""))
+        for k, e in sorted(entries.items())
+        if k not in ok and k not in ordered
+    }
+    out["sha256"] = {
+        **{k: v for k, v in old_sha.items() if k not in removed},
+        **{k: str(ok[k]["sha256"]) for k in sorted(ok)},
+    }
+    out["revisions"] = [
+        *out.get("revisions", []),
+        {
+            "revision": revision,
+            "note": note,
+            "added": sorted(i for ids in added.values() for i in ids),
+            "removed": removed,
+            "changed_sha256": changed,
+        },
+    ]
+    return with_membership(out)
 
 
 def chosen_ids(split: Mapping[str, Any]) -> list[str]:
@@ -296,12 +375,15 @@ def build_real_benchmark(
     split["rejected"] = dict(split["rejected"])
     root = Path(out)
     parameters = build_parameters([], params, simulator, limits)
+    forget_stale_objects(root, split)
     while True:
         ids = chosen_ids(split)
         if limit is not None:
             ids = _first_per_category(split, limit)
+        sources = real_sources(meshes, ids, split)  # each file checked against the split's hash
+        _record_sources(root, ids, split)
         manifest = build_objects(
-            real_sources(meshes, ids, split),
+            sources,
             root,
             params,
             simulator=simulator,
@@ -319,7 +401,91 @@ def build_real_benchmark(
         split["benchmark"] = ids
     write_json_atomic(root / "real_split.json", split)
     path = write_built_benchmark(root, ids, manifest, params, simulator)
+    built = [i for i in ids if manifest["entries"].get(i, {}).get("status") == "ok"]
+    write_text_atomic(root / ATTRIBUTION_FILE, benchmark_attribution(meshes, built))
     return path, split
+
+
+ATTRIBUTION_FILE = "ATTRIBUTION.md"
+"""The attribution a build writes beside its ``benchmark.h5`` (CC-BY-3.0 asks for creator,
+licence and what was modified); shipped as :data:`REAL_ATTRIBUTION`."""
+
+REAL_ATTRIBUTION = DATA / ATTRIBUTION_FILE
+"""The shipped real benchmark's attribution."""
+
+
+def benchmark_attribution(meshes: str | os.PathLike[str], ids: Sequence[str]) -> str:
+    """``ATTRIBUTION.md`` for the objects ``ids`` of a real benchmark file, from the import
+    folder's manifest (source library, model, creator, licence, modification of each).
+
+    Raises:
+        BenchmarkError: an id the import does not hold, or holds without its source record.
+    """
+    entries = import_entries(meshes)
+    missing = [i for i in ids if entries.get(i, {}).get("status") != "ok"]
+    if missing:
+        raise BenchmarkError(
+            f"{meshes}: expected an imported object for every benchmark id, found none for "
+            f"{', '.join(missing[:5])}"
+            + (f" and {len(missing) - 5} more" if len(missing) > 5 else "")
+        )
+    chosen = [entries[i] for i in ids]
+    fields = ("library", "name", "model", "creator", "licence", "licence_files")
+    for object_id, entry in zip(ids, chosen, strict=True):
+        lacking = [f for f in fields if f not in entry.get("source", {})]
+        if lacking or "modified" not in entry:
+            raise BenchmarkError(
+                f"{meshes}/manifest.json: {object_id}: expected the source record of an import "
+                f"(source.{', source.'.join(fields)}, modified), found it without "
+                + ", ".join(
+                    [f"source.{f}" for f in lacking] + ([] if "modified" in entry else ["modified"])
+                )
+            )
+    return attribution_text(
+        chosen,
+        subject="The meshes carried in the benchmark file beside this one",
+        note=(
+            f"The benchmark file (`benchmark.h5` of a `dg16m benchmark build-real` build, "
+            f"`benchmark_real.h5` as shipped in the package) carries these {len(ids)} meshes "
+            "(repaired and decimated as stated), their CoACD convex hulls and their labelled dual "
+            "grasps. Rebuilding it needs the Debian package: `apt-get install -y "
+            "sweethome3d-furniture`."
+        ),
+    )
+
+
+SOURCES_FILE = "sources.json"
+"""In a build folder: the sha256 of the mesh file each object was (or is being) built from."""
+
+
+def _record_sources(root: Path, ids: Sequence[str], split: Mapping[str, Any]) -> None:
+    path = root / SOURCES_FILE
+    built_from = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
+    built_from.update({i: split["sha256"][i] for i in ids})
+    root.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(path, dict(sorted(built_from.items())))
+
+
+def forget_stale_objects(root: str | os.PathLike[str], split: Mapping[str, Any]) -> list[str]:
+    """Forget the objects of a build folder that were built from other mesh bytes than the
+    split records now (a revised import, :func:`revise_split`): their manifest entries are
+    removed, so the build makes them again instead of reusing them. Returns their ids."""
+    folder = Path(root)
+    path = folder / SOURCES_FILE
+    if not (path.is_file() and (folder / "manifest.json").is_file()):
+        return []
+    built_from = json.loads(path.read_text(encoding="utf-8"))
+    manifest = read_manifest(folder)
+    stale = sorted(
+        i
+        for i in manifest["entries"]
+        if i in built_from and built_from[i] != split["sha256"].get(i)
+    )
+    if stale:
+        for object_id in stale:
+            del manifest["entries"][object_id]
+        write_manifest(folder, manifest)
+    return stale
 
 
 MAX_HULL_P95_MM = 2.0
@@ -367,3 +533,63 @@ def _first_per_category(split: Mapping[str, Any], limit: int) -> list[str]:
                 out.append(by_category[name][depth])
         depth += 1
     return out
+
+
+def ship_real_benchmark(
+    build: str | os.PathLike[str], *, to: str | os.PathLike[str] = DATA, size: int = REAL_SIZE
+) -> list[Path]:
+    """Check a finished ``build-real`` folder and copy its benchmark file, split and attribution
+    into ``to`` (the package's data folder by default) as :data:`REAL_BENCHMARK`,
+    :data:`REAL_SPLIT_FILE` and :data:`REAL_ATTRIBUTION`, each atomically.
+
+    Checked first (nothing is copied unless all hold): the three files are there; the split is
+    well formed; the file reads (every carried mesh matches its stored hash) and holds exactly
+    the split's ``size`` benchmark objects in its order, each with its mesh and convex parts;
+    the attribution names every one of them.
+
+    Returns:
+        The paths written.
+
+    Raises:
+        BenchmarkError: naming the first check that failed.
+    """
+    from dg16m_env.benchmark import BENCHMARK_FILE, read_benchmark
+
+    root = Path(build)
+    names = (BENCHMARK_FILE, REAL_SPLIT_FILE.name, ATTRIBUTION_FILE)
+    absent = [n for n in names if not (root / n).is_file()]
+    if absent:
+        raise BenchmarkError(
+            f"{root}: expected a finished 'dg16m benchmark build-real' folder with "
+            f"{', '.join(names)}, found no {', '.join(absent)}"
+        )
+    split = read_split(root / REAL_SPLIT_FILE.name)
+    bench = read_benchmark(root / BENCHMARK_FILE)
+    ids = [o.object_id for o in bench.objects]
+    if len(split["benchmark"]) != size or ids != split["benchmark"]:
+        raise BenchmarkError(
+            f"{root}: expected {size} benchmark objects in the file, in the split's order, found "
+            f"{len(ids)} in the file and {len(split['benchmark'])} in the split"
+            + ("" if set(ids) == set(split["benchmark"]) else " (different ids)")
+        )
+    bare = [o.object_id for o in bench.objects if not (o.has_mesh and o.parts)]
+    if bare:
+        raise BenchmarkError(
+            f"{root / BENCHMARK_FILE}: expected every object to carry its mesh and convex parts, "
+            f"found {len(bare)} without: {', '.join(bare[:5])}"
+        )
+    attribution = (root / ATTRIBUTION_FILE).read_text(encoding="utf-8")
+    unnamed = [i for i in ids if f"| {i} |" not in attribution]
+    if unnamed:
+        raise BenchmarkError(
+            f"{root / ATTRIBUTION_FILE}: expected a row for every benchmark object, found none "
+            f"for {len(unnamed)}: {', '.join(unnamed[:5])}"
+        )
+    target = Path(to)
+    written = []
+    for name, destination in zip(
+        names, (REAL_BENCHMARK.name, REAL_SPLIT_FILE.name, REAL_ATTRIBUTION.name), strict=True
+    ):
+        write_bytes_atomic(target / destination, (root / name).read_bytes())
+        written.append(target / destination)
+    return written

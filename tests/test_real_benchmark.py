@@ -42,6 +42,8 @@ from dg16m_env.real_benchmark import (
     read_split,
     real_sources,
     rejections,
+    revise_split,
+    ship_real_benchmark,
     with_membership,
 )
 
@@ -83,7 +85,17 @@ def _import_folder(
             "status": "ok",
             "files": {"mesh": path.name},
             "sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
-            "source": {"object_id": object_id, "category": category},
+            "source": {
+                "object_id": object_id,
+                "category": category,
+                "library": "Scopia",
+                "name": object_id.replace("-", " "),
+                "model": f"scopia/{object_id}.obj",
+                "creator": "Scopia",
+                "licence": "CC-BY-3.0",
+                "licence_files": [],
+            },
+            "modified": "a test box",
         }
     manifest = {
         "format": "dg16m-manifest",
@@ -138,6 +150,54 @@ def test_split_is_stratified_disjoint_and_seeded() -> None:
     assert len(replaced["benchmark"]) == 10
     with pytest.raises(BenchmarkError, match="expected at least 50 imported objects, found 40"):
         make_split(entries, size=50)
+
+
+def test_a_revised_import_keeps_the_orders_and_records_the_revision() -> None:
+    entries = _entries({"A": 20, "B": 10})
+    split = make_split(entries, size=10, seed=0)
+    first_a = split["categories"]["A"]["order"][0]
+    split["rejected"] = {first_a: {"stage": "screen", "reason": "too few passing pairs"}}
+    split = with_membership(split)
+    revised_entries = dict(entries)
+    gone = split["categories"]["B"]["order"][0]  # its repair is now refused
+    revised_entries[gone] = {"status": "failed", "error": "a fragment", "source": {}}
+    changed = split["categories"]["A"]["order"][1]  # re-imported with other bytes
+    revised_entries[changed] = {**entries[changed], "sha256": "f" * 64}
+    for i in range(10):  # a new category of 10 objects
+        revised_entries[f"l-{i:02d}"] = {
+            "status": "ok",
+            "sha256": f"{i:064x}",
+            "source": {"object_id": f"l-{i:02d}", "category": "Lights"},
+        }
+    revised = revise_split(split, revised_entries, note="filter v2")
+    for c in ("A", "B"):  # every order is a prefix of its revision
+        old = split["categories"][c]["order"]
+        assert revised["categories"][c]["order"][: len(old)] == old
+    assert sorted(revised["categories"]["Lights"]["order"]) == [f"l-{i:02d}" for i in range(10)]
+    assert revised["rejected"][gone]["stage"] == "import"
+    assert revised["rejected"][gone]["error"] == "a fragment"
+    assert revised["rejected"][first_a] == split["rejected"][first_a]
+    assert revised["sha256"][changed] == "f" * 64
+    assert {c: v["quota"] for c, v in revised["categories"].items()} == {
+        "A": 5,
+        "B": 2,
+        "Lights": 3,
+    }
+    assert len(revised["benchmark"]) == 10
+    assert gone not in revised["benchmark"] + revised["train"]
+    assert revised["revisions"] == [
+        {
+            "revision": 1,
+            "note": "filter v2",
+            "added": [f"l-{i:02d}" for i in range(10)],
+            "removed": [gone],
+            "changed_sha256": [changed],
+        }
+    ]
+    assert revise_split(split, revised_entries, note="filter v2") == revised  # seeded
+    again = revise_split(revised, revised_entries, note="nothing new")
+    assert again["revisions"][-1]["added"] == again["revisions"][-1]["removed"] == []
+    assert again["categories"] == revised["categories"]
 
 
 def test_split_check_refuses_overlap_and_other_files() -> None:
@@ -302,10 +362,44 @@ def test_real_build_replaces_rejected_objects_and_checks_hashes(tmp_path: Path) 
     assert set(np.unique(bench.source)) <= {SOURCES.index(a) for a in SOURCES}
     written = json.loads((tmp_path / "out" / "real_split.json").read_text())
     assert written["benchmark"] == ["a-plank", "b-plank"]
+    attribution = (tmp_path / "out" / "ATTRIBUTION.md").read_text()
+    assert "| a-plank | a plank (`scopia/a-plank.obj`) | Scopia |" in attribution
+    assert "| b-plank |" in attribution
+    assert "a-cube" not in attribution
+    assert "CC-BY-3.0" in attribution
+    assert "carries these 2 meshes" in attribution
+    # shipping checks the build before it copies anything
+    data = tmp_path / "data"
+    with pytest.raises(BenchmarkError, match="expected 300 benchmark objects in the file"):
+        ship_real_benchmark(tmp_path / "out", to=data)
+    assert not data.exists()
+    shipped = ship_real_benchmark(tmp_path / "out", to=data, size=2)
+    assert [p.name for p in shipped] == ["benchmark_real.h5", "real_split.json", "ATTRIBUTION.md"]
+    assert (data / "benchmark_real.h5").read_bytes() == path.read_bytes()
+    (tmp_path / "out" / "ATTRIBUTION.md").write_text(attribution.replace("| b-plank |", "| x |"))
+    with pytest.raises(BenchmarkError, match="expected a row for every benchmark object"):
+        ship_real_benchmark(tmp_path / "out", to=tmp_path / "data2", size=2)
     # a mesh changed after the split was made is an error
     _plank(meshes, "b-plank", (0.4, 0.07, 0.3))
     with pytest.raises(BenchmarkError, match="the mesh changed since the split was made"):
         real_sources(meshes, ["b-plank"], split)
+    # ... until the split is revised with the new bytes: the object is then built again, not
+    # reused from the build folder
+    manifest_path = meshes / "manifest.json"
+    imported = json.loads(manifest_path.read_text())
+    new_sha = hashlib.sha256((meshes / "b-plank.obj").read_bytes()).hexdigest()
+    imported["entries"]["b-plank"]["sha256"] = new_sha
+    manifest_path.write_text(json.dumps(imported))
+    from dg16m_env.real_benchmark import import_entries as entries_of
+
+    revised = revise_split(final, entries_of(meshes), note="b-plank re-imported")
+    assert revised["revisions"][-1]["changed_sha256"] == ["b-plank"]
+    path, _ = build_real_benchmark(
+        meshes, tmp_path / "out", split=revised, params=TINY, limits=limits, progress=False
+    )
+    rebuilt = {o.object_id: o for o in read_benchmark(path).objects}
+    assert rebuilt["b-plank"].load().mesh.extents[1] == pytest.approx(0.07)
+    assert json.loads((tmp_path / "out" / "sources.json").read_text())["b-plank"] == new_sha
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,6 +1,6 @@
 """A benchmark of real furniture that carries its meshes, used as a user would: the evaluators
 score a submission against it and the environments pass both checkers, with no mesh folder
-(``tests/data/real_tiny``: two objects of the real pilot build, see its ATTRIBUTION.md)."""
+(``tests/data/real_tiny``: two objects of the real benchmark build, see its ATTRIBUTION.md)."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ TINY_REAL = Path(__file__).parent / "data" / "real_tiny" / "benchmark.h5"
 
 def test_the_file_carries_its_meshes_and_hulls() -> None:
     bench = read_benchmark(TINY_REAL)
-    assert [o.object_id for o in bench.objects] == ["scopia-wall-hanger", "scopia-littlebank"]
+    assert [o.object_id for o in bench.objects] == ["scopia-littlebank", "blendswap-cc-0-bench"]
     for obj in bench.objects:
         assert obj.has_mesh
         assert obj.parts
