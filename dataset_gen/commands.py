@@ -230,7 +230,7 @@ def _register_objects_import_sweethome3d(actions: Any) -> None:
         "  dg16m benchmark build --meshes runs/real --out runs/real_bench\n",
         description=(
             "Read the Sweet Home 3D furniture libraries (*.sh3f), keep the models that are "
-            "dual-arm objects (no people, doors, windows, stairs, lights, vehicles, plants, "
+            "dual-arm objects (no people, doors, windows, stairs, vehicles, plants, "
             f"textiles; longest / shortest catalogue side <= {MAX_ASPECT:g}), scale each to its "
             f"catalogue size, then to a longest side in {SIZE_RANGE_M[0]:g}-{SIZE_RANGE_M[1]:g} m "
             "(kept when the catalogue's is in range, else drawn uniformly, seeded), rebuild it "

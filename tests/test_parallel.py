@@ -35,26 +35,33 @@ def _swallowing_task(item: Item) -> dict[str, object]:
 
 
 def test_an_interrupt_swallowed_during_a_task_stops_the_run_after_it(tmp_path: Path) -> None:
-    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
-        pytest.skip("SIGINT is not Python's default handler in this process")
-    items = [Item(f"o{i}") for i in range(4)]
-    with pytest.raises(KeyboardInterrupt):
-        run_resumable(
-            _swallowing_task,
-            items,
-            (),
-            root=tmp_path,
-            kind="grasps",
-            parameters={},
-            folders=(),
-            error=Dg16mError,
-        )
-    assert list(read_manifest(tmp_path)["entries"]) == ["o0"]  # recorded, then stopped
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back
+    # Python's own handler, as in a terminal (a shell's background job, e.g. under nohup,
+    # starts with SIGINT ignored, and the tests may run in one)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        items = [Item(f"o{i}") for i in range(4)]
+        with pytest.raises(KeyboardInterrupt):
+            run_resumable(
+                _swallowing_task,
+                items,
+                (),
+                root=tmp_path,
+                kind="grasps",
+                parameters={},
+                folders=(),
+                error=Dg16mError,
+            )
+        assert list(read_manifest(tmp_path)["entries"]) == ["o0"]  # recorded, then stopped
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 POOL_SCRIPT = """
-import sys, time
+import signal, sys, time
+# Python's own handler, as in a terminal: a shell's background job (nohup, &) starts with
+# SIGINT ignored, and so would this script when the tests run in one
+signal.signal(signal.SIGINT, signal.default_int_handler)
 from dataclasses import dataclass
 from pathlib import Path
 from dataset_gen.errors import Dg16mError

@@ -138,8 +138,10 @@ def test_properties_parsing_handles_escapes_continuations_and_comments() -> None
         ({"name": "Ficus tree"}, "plant (tree)"),
         ({"name": "Oriental rug"}, "textile (rug)"),
         ({"name": "Hanging clothes"}, "textile (clothes)"),
-        ({"height": 2.0}, "flat or thin"),
+        ({"height": 2.0}, "flat or thin"),  # 60 / 2 = 30
         ({}, None),
+        ({"height": 6.0}, None),  # 60 / 6 = 10: a book or a plate (filter version 3)
+        ({"name": "Air mattress"}, "textile (mattress)"),
         # lamps are rigid objects (filter version 2)
         ({"category": "Lights", "name": "Desk lamp"}, None),
         ({"light": True}, None),
@@ -305,7 +307,7 @@ def test_real_catalogue_and_filter() -> None:
     assert len(entries) == 820
     assert len({e.object_id for e in entries}) == 820
     kept = select_entries(entries)
-    assert len(kept) == 542  # filter version 2 (489 with version 1)
+    assert len(kept) == 574  # filter version 3 (542 with version 2, 489 with version 1)
     licences = {e.library: e.licence for e in entries}
     assert licences["BlendSwap-CC-0"] == "CC0-1.0"
     assert licences["Scopia"] == "CC-BY-3.0"
