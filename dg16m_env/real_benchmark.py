@@ -17,7 +17,13 @@ split is every other imported object that the build did not reject. Keys::
      "size": 300, "categories": {"<category>": {"quota": q, "order": [id, ...]}, ...},
      "benchmark": [id, ...], "train": [id, ...],
      "rejected": {id: {"stage": "...", "reason": "...", "error": "..."}},
-     "import_failed": {id: "error"}, "sha256": {id: "<sha256 of the OBJ file>"}}
+     "import_failed": {id: "error"}, "sha256": {id: "<sha256 of the OBJ file>"},
+     "revisions": [{"revision": n, "note": "...", "added": [id, ...], "removed": [id, ...],
+                    "changed_sha256": [id, ...]}, ...]}
+
+``revisions`` (absent in a split never revised) lists each :func:`revise_split`: a revised import
+keeps every order as a prefix, rejects the ids it refuses at stage ``"import"`` and appends its
+new ids, so a build's finished objects keep their places.
 
 The build (:func:`build_real_benchmark`)
 ----------------------------------------
