@@ -56,9 +56,11 @@ timeout or a crash a fresh process (a fresh import) runs the remaining objects.
 :func:`run_predictor` must do so under ``if __name__ == "__main__":``.
 
 Every failure is recorded per object in :attr:`PredictorRun.errors` (the last line of a message is
-its summary). :func:`submission_from_predictor` writes one placeholder dual grasp that cannot
-succeed (both hands 5 m away from the object) for each failed object, so a failed object scores 0;
-it never leaves the denominator. The failures are listed in the submission's metadata.
+its summary). :func:`submission_from_predictor` writes placeholder dual grasps that cannot
+succeed (both hands 5 m away from the object) for each failed object, as many as the most grasps
+the predictor returned for any object (:func:`failed_placeholders`), so a failed object scores 0
+and weighs as much as an answered one; it never leaves the denominator. The failures are listed in
+the submission's metadata.
 """
 
 from __future__ import annotations
@@ -99,6 +101,15 @@ FAILED_PLACEHOLDER = np.tile(np.eye(4), (1, 2, 1, 1))
 FAILED_PLACEHOLDER[0, 0, :3, 3] = (5.0, 0.0, 0.0)
 FAILED_PLACEHOLDER[0, 1, :3, 3] = (5.0, 0.5, 0.0)
 FAILED_PLACEHOLDER.setflags(write=False)
+
+
+def failed_placeholders(answered: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The dual grasps written for an object the predictor failed on: :data:`FAILED_PLACEHOLDER`
+    repeated as many times as the most grasps of any answered object (``answered``: object id
+    -> (K, 2, 4, 4) poses), at least once. (K, 2, 4, 4), m."""
+    k = max((len(p) for p in answered.values()), default=1)
+    return np.repeat(FAILED_PLACEHOLDER, max(k, 1), axis=0)
+
 
 _MAX_MESSAGE_BYTES = 1 << 20  # a JSON message from the child
 _TRACEBACK_LINES = 5  # lines of traceback kept in an error message
@@ -846,10 +857,13 @@ def submission_from_predictor(
 
     Each object's observation (:func:`dg16m_env.observation.object_observation` with
     ``n_points`` and ``seed``) is built just before it is needed. An object the predictor failed
-    on gets :data:`FAILED_PLACEHOLDER` (one dual grasp 5 m away, which cannot succeed, no score):
-    it scores 0 and stays in the denominator. The metadata records ``predictor`` (the target),
-    ``failed_objects`` (id -> the error's summary line, shortened), ``n_points``, ``seed``,
-    ``max_grasps`` and the limits.
+    on gets :func:`failed_placeholders` (as many copies of :data:`FAILED_PLACEHOLDER`, a dual
+    grasp 5 m away that cannot succeed, as the most grasps the predictor returned for any
+    object; no score): it scores 0, stays in the denominator and weighs as much there as an
+    object the predictor answered, so failing on hard objects cannot raise a rate. The metadata
+    records ``predictor`` (the target), ``failed_objects`` (id -> the error's summary line,
+    shortened), ``failed_grasps_per_object``, ``n_points``, ``seed``, ``max_grasps`` and the
+    limits.
 
     Args:
         spec: the predictor and its limits.
@@ -884,10 +898,12 @@ def submission_from_predictor(
         max_grasps=max_grasps,
         progress=progress,
     )
-    poses = {i: run.poses.get(i, FAILED_PLACEHOLDER) for i in ref.object_ids}
+    failed = failed_placeholders(run.poses)
+    poses = {i: run.poses.get(i, failed) for i in ref.object_ids}
     metadata = {
         "predictor": spec.target,
         "failed_objects": _metadata_errors(run.errors),
+        "failed_grasps_per_object": len(failed),
         "n_points": int(n_points),
         "seed": int(seed),
         "max_grasps": int(max_grasps),

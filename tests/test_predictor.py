@@ -414,13 +414,17 @@ def test_submission_from_predictor(module_file: Path, tmp_path: Path) -> None:
         assert f.attrs["benchmark"] == ref.sha256
         meta = json.loads(f.attrs["metadata"])
         assert sorted(f["objects"]) == sorted(ids)
-        np.testing.assert_array_equal(f[f"objects/{crate}/poses"][()], FAILED_PLACEHOLDER)
+        # the failed object weighs as much as an answered one (3 grasps each): 3 failures
+        placeholders = f[f"objects/{crate}/poses"][()]
+        assert placeholders.shape == (3, 2, 4, 4)
+        np.testing.assert_array_equal(placeholders, np.repeat(FAILED_PLACEHOLDER, 3, axis=0))
         assert f"objects/{crate}/scores" not in f
         for object_id in set(ids) - {crate}:
             np.testing.assert_array_equal(f[f"objects/{object_id}/poses"][()], run.poses[object_id])
             np.testing.assert_array_equal(f[f"objects/{object_id}/scores"][()], [1.0, 0.5, 0.0])
     assert meta["predictor"] == f"{module_file}:benchmark"
     assert meta["failed_objects"] == {crate: "RuntimeError: crates are hard"}
+    assert meta["failed_grasps_per_object"] == 3
     assert (meta["n_points"], meta["seed"]) == (64, 3)
     validate = getattr(submission_module, "validate_submission", None)
     if validate is None:
@@ -437,3 +441,13 @@ def test_the_progress_bar_shows_each_object_once(
     lines = capsys.readouterr().err.replace("\r", "\n").splitlines()
     for done in (1, 2):
         assert sum(f"| {done}/3 " in line for line in lines) == 1, lines
+
+
+def test_a_failed_object_weighs_as_much_as_the_largest_answer() -> None:
+    from dg16m_env.predictor import failed_placeholders
+
+    assert failed_placeholders({}).shape == (1, 2, 4, 4)  # nothing answered: one failure
+    answered = {"a": np.zeros((2, 2, 4, 4)), "b": np.zeros((10, 2, 4, 4))}
+    placeholders = failed_placeholders(answered)
+    assert placeholders.shape == (10, 2, 4, 4)
+    assert (np.linalg.norm(placeholders[:, :, :3, 3], axis=-1) >= 5.0).all()  # far off the object
