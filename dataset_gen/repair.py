@@ -189,29 +189,22 @@ def repair_mesh(
             f"expected a mesh with a positive finite size, found extents {mesh.extents}"
         )
     base = max(params.min_pitch, params.pitch_fraction * longest)
-    repaired, report = _repair_with_retries(mesh, params, base, start, fast_simplification)
-    loss = size_loss(repaired, mesh)
     fine = max(params.min_pitch, FINE_PITCH * base)
-    if loss > MAX_SIZE_LOSS and fine < base:
-        # thin parts vanish at the first voxel size (or the model falls apart into pieces and
-        # only the largest is kept): a finer grid keeps more of them
-        coarse_loss = loss
-        repaired, report = _repair_with_retries(mesh, params, fine, start, fast_simplification)
+    # thin parts vanish at the first voxel size (or the model falls apart into pieces and only
+    # the largest is kept): a finer grid, where one is allowed, keeps more of them
+    tried: list[str] = []
+    for pitch in (base, fine) if fine < base else (base,):
+        repaired, report = _repair_with_retries(mesh, params, pitch, start, fast_simplification)
         loss = size_loss(repaired, mesh)
-        if loss > MAX_SIZE_LOSS:
-            raise MeshError(
-                f"expected the repaired mesh to keep the model's extents (each axis short by at "
-                f"most {MAX_SIZE_LOSS:.0%} of the longest side), found {coarse_loss:.0%} short at "
-                f"pitch {base:.4g} m and {loss:.0%} at {fine:.4g} m: parts thinner than a voxel "
-                "vanished or the model came apart (only its largest piece is kept)"
-            )
-    elif loss > MAX_SIZE_LOSS:
-        raise MeshError(
-            f"expected the repaired mesh to keep the model's extents (each axis short by at most "
-            f"{MAX_SIZE_LOSS:.0%} of the longest side), found {loss:.0%} short at pitch "
-            f"{base:.4g} m, the smallest allowed"
-        )
-    return repaired, replace(report, size_loss=loss)
+        if loss <= MAX_SIZE_LOSS:
+            return repaired, replace(report, size_loss=loss)
+        tried.append(f"{loss:.0%} short at pitch {pitch:.4g} m")
+    smallest = "" if len(tried) > 1 else ", the smallest allowed"
+    raise MeshError(
+        f"expected the repaired mesh to keep the model's extents (each axis short by at most "
+        f"{MAX_SIZE_LOSS:.0%} of the longest side), found {' and '.join(tried)}{smallest}: parts "
+        "thinner than a voxel vanished or the model came apart (only its largest piece is kept)"
+    )
 
 
 MAX_SIZE_LOSS = 0.05

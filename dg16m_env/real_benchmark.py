@@ -197,7 +197,7 @@ def revise_split(
     Raises:
         BenchmarkError: fewer usable imported objects than the split's size.
     """
-    out = dict(check_split(dict(split)))
+    out = check_split(dict(split))  # a copy: the caller's split is left as it was
     ok = {k: e for k, e in entries.items() if e.get("status") == "ok"}
     if len(ok) < out["size"]:
         raise BenchmarkError(f"expected at least {out['size']} imported objects, found {len(ok)}")
