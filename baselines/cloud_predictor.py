@@ -7,8 +7,13 @@ A :class:`CloudPredictor` is a predictor ``observation -> (poses (K, 2, 4, 4), s
    the whole surface); ``view="partial"`` what ``n_cameras`` seeded depth cameras see
    (:func:`camera_cloud`);
 2. samples antipodal dual-grasp candidates on the cloud alone
-   (:func:`baselines.cloud_grasps.cloud_dual_candidates`; at most ``sampler.max_pairs``); when
-   none is found (thin walls, e.g. crates), once more with the hand's clearance set to 0;
+   (:func:`baselines.cloud_grasps.cloud_dual_candidates`; at most ``sampler.max_pairs``); the
+   partial-cloud predictors add enclosing grasps (:data:`PARTIAL_SAMPLER`: the hand approaches
+   a point against its normal and closes on what lies between its fingers, so a board's edge
+   can be held with its underside unseen); when none is found (thin walls, e.g. crates), once
+   more with the hand's clearance set to 0. With ``free_space=True`` (not the default: it
+   measured worse, ``baselines/RESULTS.md``) a partial view also keeps only hands that lie in
+   space the cameras saw empty;
 3. checks each candidate for force closure on the cloud's own contacts and normals
    (``force_closure=True``, the default: :func:`dataset_gen.pairing.score_pairs` with the
    paper's parameters, the check the dataset's labels come from) and ranks them:
@@ -22,7 +27,8 @@ A :class:`CloudPredictor` is a predictor ``observation -> (poses (K, 2, 4, 4), s
    ranker's score plus :data:`FC_BONUS` for a passing candidate, so the scores order the grasps
    as they were ranked.
 
-No step reads the mesh except :func:`camera_cloud`, which stands in for a depth camera: it ray
+No step reads the mesh except :func:`camera_views` (and :func:`camera_cloud`, which keeps
+``n_points`` of its hits), which stands in for a depth camera: it ray
 casts the observation's mesh from cameras placed as the environments place theirs
 (:func:`dg16m_env.envs.cameras.draw_cameras` around the object's box: azimuth spread around,
 elevation -70 to -15 degrees, distance 0.9-1.2 x 2.2 x the bounding radius; MuJoCo's default
@@ -59,6 +65,7 @@ from baselines.cloud_grasps import (
     Cloud,
     CloudError,
     CloudSamplerConfig,
+    DepthViews,
     DualCandidates,
     check_cloud,
     cloud_dual_candidates,
@@ -109,19 +116,84 @@ def camera_rays(
 ) -> np.ndarray:
     """(R * R, 3) unit ray directions through the pixel centres of a pinhole camera at
     ``position`` looking at ``lookat`` (m), ``+z`` up, square image of ``resolution`` pixels."""
-    forward = np.asarray(lookat, dtype=np.float64) - np.asarray(position, dtype=np.float64)
-    forward /= np.linalg.norm(forward)
-    right = np.cross(forward, [0.0, 0.0, 1.0])
-    if np.linalg.norm(right) < 1e-9:  # looking straight down or up
-        right = np.cross(forward, [0.0, 1.0, 0.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
+    right, up, forward = camera_axes(position, lookat)
     half = math.tan(math.radians(fovy_deg) / 2.0)
     t = (2.0 * (np.arange(resolution) + 0.5) / resolution - 1.0) * half
     u, v = np.meshgrid(t, -t)  # rows top to bottom
     rays = forward + u[..., None] * right + v[..., None] * up
     rays = rays.reshape(-1, 3)
     return rays / np.linalg.norm(rays, axis=1, keepdims=True)
+
+
+def camera_axes(position: np.ndarray, lookat: np.ndarray) -> np.ndarray:
+    """(3, 3) the unit ``right``, ``up`` and ``forward`` axes (rows) of the camera of
+    :func:`camera_rays`."""
+    forward = np.asarray(lookat, dtype=np.float64) - np.asarray(position, dtype=np.float64)
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    if np.linalg.norm(right) < 1e-9:
+        right = np.cross(forward, [0.0, 1.0, 0.0])
+    right /= np.linalg.norm(right)
+    return np.stack([right, np.cross(right, forward), forward])
+
+
+def camera_views(
+    observation: dict[str, Any],
+    rng: np.random.Generator,
+    *,
+    n_cameras: int = 2,
+    resolution: int = 128,
+) -> tuple[np.ndarray, np.ndarray, DepthViews]:
+    """Ray cast what ``n_cameras`` seeded depth cameras see of the observation's object.
+
+    Args:
+        observation: needs ``mesh_vertices`` (V, 3), ``mesh_faces`` (F, 3) and ``bounds`` (2, 3)
+            (object frame, m).
+        rng: draws the cameras (:func:`dg16m_env.envs.cameras.draw_cameras`).
+        n_cameras: cameras (>= 1).
+        resolution: image side (pixels).
+
+    Returns:
+        Every pixel's first hit: ``points (H, 3)`` and their faces' unit outward ``normals (H,
+        3)`` (m, object frame), and the :class:`~baselines.cloud_grasps.DepthViews` (each
+        pixel's distance to its hit, ``inf`` where it saw nothing).
+    """
+    from dg16m_env.envs.cameras import draw_cameras
+
+    check_integer("n_cameras", n_cameras, minimum=1, error=CloudError)
+    check_integer("resolution", resolution, minimum=2, error=CloudError)
+    missing = [k for k in ("mesh_vertices", "mesh_faces", "bounds") if k not in observation]
+    if missing:
+        raise CloudError(f"observation: expected keys {missing}, found {sorted(observation)}")
+    mesh = trimesh.Trimesh(
+        np.asarray(observation["mesh_vertices"], dtype=np.float64),
+        np.asarray(observation["mesh_faces"], dtype=np.int64),
+        process=False,
+    )
+    bounds = np.asarray(observation["bounds"], dtype=np.float64)
+    centre = bounds.mean(axis=0)
+    radius = max(float(np.linalg.norm(bounds[1] - bounds[0])) / 2.0, 1e-3)
+    points, normals, origins, axes, distances = [], [], [], [], []
+    for pose in draw_cameras(rng, n_cameras, centre, radius):
+        origin = pose.position
+        rays = camera_rays(origin, np.asarray(pose.lookat), resolution)
+        hit_face, ray, where = mesh.ray.intersects_id(
+            np.tile(origin, (len(rays), 1)), rays, multiple_hits=False, return_locations=True
+        )
+        points.append(where)
+        normals.append(mesh.face_normals[hit_face])
+        distance = np.full(resolution * resolution, np.inf)
+        distance[ray] = np.linalg.norm(where - origin, axis=1)
+        origins.append(origin)
+        axes.append(camera_axes(origin, np.asarray(pose.lookat)))
+        distances.append(distance.reshape(resolution, resolution))
+    views = DepthViews(
+        origins=np.asarray(origins, dtype=np.float64),
+        axes=np.asarray(axes),
+        tan_half=math.tan(math.radians(FOVY_DEG) / 2.0),
+        distance=np.asarray(distances),
+    )
+    return np.concatenate(points), np.concatenate(normals), views
 
 
 def camera_cloud(
@@ -132,7 +204,8 @@ def camera_cloud(
     resolution: int = 128,
     n_points: int = 1024,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """What ``n_cameras`` seeded depth cameras see of the observation's object.
+    """What ``n_cameras`` seeded depth cameras see of the observation's object
+    (:func:`camera_views`), as a fixed-size cloud.
 
     Args:
         observation: needs ``mesh_vertices`` (V, 3), ``mesh_faces`` (F, 3) and ``bounds`` (2, 3)
@@ -146,33 +219,11 @@ def camera_cloud(
         ``points (n_points, 3)``, ``normals (n_points, 3)`` float32 (unit outward) and ``mask
         (n_points,)`` float32 (1 = real, 0 = padding), as the environments' partial observation.
     """
-    from dg16m_env.envs.cameras import draw_cameras, fixed_size
+    from dg16m_env.envs.cameras import fixed_size
 
-    check_integer("n_cameras", n_cameras, minimum=1, error=CloudError)
-    check_integer("resolution", resolution, minimum=2, error=CloudError)
     check_integer("n_points", n_points, minimum=1, error=CloudError)
-    missing = [k for k in ("mesh_vertices", "mesh_faces", "bounds") if k not in observation]
-    if missing:
-        raise CloudError(f"observation: expected keys {missing}, found {sorted(observation)}")
-    mesh = trimesh.Trimesh(
-        np.asarray(observation["mesh_vertices"], dtype=np.float64),
-        np.asarray(observation["mesh_faces"], dtype=np.int64),
-        process=False,
-    )
-    bounds = np.asarray(observation["bounds"], dtype=np.float64)
-    centre = bounds.mean(axis=0)
-    radius = max(float(np.linalg.norm(bounds[1] - bounds[0])) / 2.0, 1e-3)
-    points, normals = [], []
-    for pose in draw_cameras(rng, n_cameras, centre, radius):
-        origin = pose.position
-        rays = camera_rays(origin, np.asarray(pose.lookat), resolution)
-        hit_face, ray, where = mesh.ray.intersects_id(
-            np.tile(origin, (len(rays), 1)), rays, multiple_hits=False, return_locations=True
-        )
-        del ray
-        points.append(where)
-        normals.append(mesh.face_normals[hit_face])
-    return fixed_size(np.concatenate(points), np.concatenate(normals), n_points, rng)
+    points, normals, _ = camera_views(observation, rng, n_cameras=n_cameras, resolution=resolution)
+    return fixed_size(points, normals, n_points, rng)
 
 
 # --------------------------------------------------------------------------------------------
@@ -235,6 +286,10 @@ class CloudPredictor:
             ``"reversed"`` uses CGDF's).
         threads: torch threads.
         force_closure: rank candidates that pass force closure on the cloud first.
+        free_space: with ``view="partial"``, keep only hands whose open palm (and fingers,
+            ``sampler.free_space_fingers``) lie in space the cameras saw empty
+            (:func:`~baselines.cloud_grasps.hands_in_seen_free_space`); space behind what they
+            saw may hold the part they did not see.
         sampler: the candidate sampler's parameters.
     """
 
@@ -248,6 +303,7 @@ class CloudPredictor:
     checkpoint: str | None = None
     threads: int = 1
     force_closure: bool = True
+    free_space: bool = False
     sampler: CloudSamplerConfig = field(default_factory=CloudSamplerConfig)
 
     def __post_init__(self) -> None:
@@ -281,23 +337,29 @@ class CloudPredictor:
         model = "cgdf" if self.ranker == "reversed" else self.ranker
         return str(CHECKPOINTS / f"{model}-dg16m.pt")
 
-    def cloud(self, observation: dict[str, Any], rng: np.random.Generator) -> Cloud:
-        """The checked cloud of the configured view."""
+    def observe(
+        self, observation: dict[str, Any], rng: np.random.Generator
+    ) -> tuple[Cloud, DepthViews | None]:
+        """The checked cloud of the configured view, and for ``view="partial"`` the depth
+        views it came from (``None`` for the full cloud)."""
+        from dg16m_env.envs.cameras import fixed_size
+
         if not isinstance(observation, dict):
             raise CloudError(f"observation: expected a dict, found {type(observation).__name__}")
         if self.view == "partial":
-            points, normals, mask = camera_cloud(
-                observation,
-                rng,
-                n_cameras=self.n_cameras,
-                resolution=self.camera_resolution,
-                n_points=self.n_points,
+            points, normals, views = camera_views(
+                observation, rng, n_cameras=self.n_cameras, resolution=self.camera_resolution
             )
-            return check_cloud(points, normals, mask)
+            points, normals, mask = fixed_size(points, normals, self.n_points, rng)
+            return check_cloud(points, normals, mask), views
         missing = [k for k in ("points", "normals") if k not in observation]
         if missing:
             raise CloudError(f"observation: expected keys {missing}, found {sorted(observation)}")
-        return check_cloud(observation["points"], observation["normals"])
+        return check_cloud(observation["points"], observation["normals"]), None
+
+    def cloud(self, observation: dict[str, Any], rng: np.random.Generator) -> Cloud:
+        """The checked cloud of the configured view."""
+        return self.observe(observation, rng)[0]
 
     def candidates(
         self, observation: dict[str, Any]
@@ -309,11 +371,12 @@ class CloudPredictor:
                 f"observation object_id: expected a non-empty str, found {object_id!r}"
             )
         rng = np.random.default_rng(object_seed(self.seed, SEED_PREFIX + object_id))
-        cloud = self.cloud(observation, rng)
-        cands = cloud_dual_candidates(cloud, self.sampler, rng=rng)
+        cloud, views = self.observe(observation, rng)
+        views = views if self.free_space else None
+        cands = cloud_dual_candidates(cloud, self.sampler, rng=rng, views=views)
         if cands.n == 0 and self.sampler.clearance_factor > 0.0:  # thin walls: no clearance
             relaxed = dataclasses.replace(self.sampler, clearance_factor=0.0)
-            cands = cloud_dual_candidates(cloud, relaxed, rng=rng)
+            cands = cloud_dual_candidates(cloud, relaxed, rng=rng, views=views)
             cands.counts["clearance_relaxed"] = 1
         return cloud, cands, rng
 
@@ -352,11 +415,21 @@ pointnetgpd_predictor = CloudPredictor("pointnetgpd")
 """Dual-PointNetGPD ranks candidates on the full cloud."""
 random_predictor = CloudPredictor("random")
 """The random-rank control on the full cloud (same candidates as the classifiers')."""
-cgdf_partial_predictor = CloudPredictor("cgdf", view="partial", n_points=4096)
+PARTIAL_SAMPLER = CloudSamplerConfig(enclosing=True)
+"""The sampler of the partial-cloud predictors, with antipodal and enclosing grasps
+(:func:`baselines.cloud_grasps.sample_enclosing_grasps`). A camera that looks down never sees an
+underside, so two antipodal contacts are often not both seen."""
+cgdf_partial_predictor = CloudPredictor(
+    "cgdf", view="partial", n_points=4096, sampler=PARTIAL_SAMPLER
+)
 """CGDF on what two seeded depth cameras see (4096 of their points)."""
-pointnetgpd_partial_predictor = CloudPredictor("pointnetgpd", view="partial", n_points=4096)
+pointnetgpd_partial_predictor = CloudPredictor(
+    "pointnetgpd", view="partial", n_points=4096, sampler=PARTIAL_SAMPLER
+)
 """Dual-PointNetGPD on what two seeded depth cameras see."""
-random_partial_predictor = CloudPredictor("random", view="partial", n_points=4096)
+random_partial_predictor = CloudPredictor(
+    "random", view="partial", n_points=4096, sampler=PARTIAL_SAMPLER
+)
 """The random-rank control on what two seeded depth cameras see."""
 
 
@@ -365,14 +438,17 @@ __all__ = [
     "FC_BONUS",
     "FOVY_DEG",
     "PAPER_FORCE_CLOSURE",
+    "PARTIAL_SAMPLER",
     "RANKERS",
     "SEED_PREFIX",
     "VIEWS",
     "CloudPredictor",
     "Ranker",
     "View",
+    "camera_axes",
     "camera_cloud",
     "camera_rays",
+    "camera_views",
     "cgdf_partial_predictor",
     "cgdf_predictor",
     "classifier_scores",

@@ -365,6 +365,9 @@ def build_real_benchmark(
 ) -> tuple[Path, dict[str, Any]]:
     """Build (or resume) the real benchmark in ``out`` with replacements (module docstring).
 
+    A resumed build replaces the objects its folder already rejected without building them
+    again (their entries in ``manifest.json`` stay as they are).
+
     Args:
         meshes: the import folder.
         out: the build folder (``manifest.json``, ``objects/``, ``benchmark.h5``,
@@ -382,6 +385,11 @@ def build_real_benchmark(
     root = Path(out)
     parameters = build_parameters([], params, simulator, limits)
     forget_stale_objects(root, split)
+    # Resuming: objects this folder already rejected stay rejected (replaced, not retried;
+    # their failures are deterministic or ran past a budget).
+    previous = read_manifest(root)["entries"] if (root / "manifest.json").is_file() else {}
+    while new := rejections(previous, chosen_ids(split)):
+        split["rejected"].update(new)
     while True:
         ids = chosen_ids(split)
         if limit is not None:

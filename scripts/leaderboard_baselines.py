@@ -4,10 +4,16 @@
 
 For the board's benchmark, writes the reference submissions of ``dg16m baselines submissions``
 (random, farthest and force-closure pairing, the paper's Table III, and the benchmark's own
-passing pairs) next to the database, adds the team ``baselines`` when it is missing (its token
-goes to ``baselines.token`` beside the database, mode 0600), then submits each file and scores it
-in this process (or only queues it with ``--queue-only``, for running workers). A file the team
-already submitted is skipped, so running the script again is harmless.
+passing pairs) next to the database, and with ``--predictors`` the submission of each
+``module:callable`` predictor (run locally with the predictor runner's default time and memory
+limits, e.g. the point-cloud predictors of :mod:`baselines.cloud_predictor`), adds the team
+``baselines`` when it is missing (its token goes to ``baselines.token`` beside the database, mode
+0600), then submits each file and scores it in this process (or only queues it with
+``--queue-only``, for running workers). A file the team already submitted is skipped, so running
+the script again is harmless.
+
+    python scripts/leaderboard_baselines.py --db runs/leaderboard/board.db --strategies "" \
+        --predictors baselines.cloud_predictor:cgdf_predictor,baselines.cloud_predictor:cgdf_partial_predictor
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ from pathlib import Path
 
 from baselines.commands import DEFAULT_STRATEGIES
 from baselines.reference_submissions import parse_strategies, write_reference_submissions
+from dg16m_env.predictor import PredictorSpec, submission_from_predictor
 from leaderboard.board import (
     DEFAULT_EVALUATORS,
     Board,
@@ -40,7 +47,17 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser.add_argument(
         "--evaluators", default=None, help="default: the board's (a new board's: fce,gsr)"
     )
-    parser.add_argument("--strategies", default=",".join(DEFAULT_STRATEGIES))
+    parser.add_argument(
+        "--strategies",
+        default=",".join(DEFAULT_STRATEGIES),
+        help=f"reference pairing strategies, comma-separated, or '' for none "
+        f"(default {','.join(DEFAULT_STRATEGIES)})",
+    )
+    parser.add_argument(
+        "--predictors",
+        default="",
+        help="module:callable predictors to submit too, comma-separated (default none)",
+    )
     parser.add_argument("--k", type=int, default=10, help="dual grasps per object (10)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=1, help="local processes")
@@ -67,19 +84,36 @@ def main(argv: Sequence[str] | None = None) -> int:
     board = Board(args.db, benchmark=args.benchmark, evaluators=evaluators)
     ref = board.benchmark_ref()
     out = args.db.parent / "reference"
-    started = time.perf_counter()
-    paths = write_reference_submissions(
-        out,
-        benchmark=ref,
-        mesh_root=ref.mesh_root,
-        k=args.k,
-        seed=args.seed,
-        workers=args.workers,
-        strategies=parse_strategies(args.strategies),
-        progress=not args.no_progress,
-    )
-    took = time.perf_counter() - started
-    print(f"wrote {len(paths)} reference submissions to {out} in {took:.0f} s")
+    paths: dict[str, Path] = {}
+    if args.strategies.strip():
+        started = time.perf_counter()
+        paths = write_reference_submissions(
+            out,
+            benchmark=ref,
+            mesh_root=ref.mesh_root,
+            k=args.k,
+            seed=args.seed,
+            workers=args.workers,
+            strategies=parse_strategies(args.strategies),
+            progress=not args.no_progress,
+        )
+        took = time.perf_counter() - started
+        print(f"wrote {len(paths)} reference submissions to {out} in {took:.0f} s")
+    out.mkdir(parents=True, exist_ok=True)
+    for target in [t.strip() for t in args.predictors.split(",") if t.strip()]:
+        name = target.rsplit(":", 1)[-1]
+        started = time.perf_counter()
+        path, run = submission_from_predictor(
+            PredictorSpec(target=target),
+            out / f"{name}.h5",
+            benchmark=ref,
+            max_grasps=args.k,
+            progress=not args.no_progress,
+        )
+        took = time.perf_counter() - started
+        failed_on = f", failed on {len(run.errors)} objects" if run.errors else ""
+        print(f"{name}: wrote {path} in {took:.0f} s{failed_on}")
+        paths[name] = path
     team = baselines_team(board, args.db)
     options = WorkerOptions(workers=args.workers)
     failed = 0

@@ -14,6 +14,7 @@ from baselines.cloud_grasps import (
     check_cloud,
     cloud_dual_candidates,
     hand_hits_cloud,
+    sample_enclosing_grasps,
 )
 from dataset_gen.gripper import PANDA
 from dataset_gen.pairing import grippers_collide
@@ -144,3 +145,84 @@ def test_bad_sampler_arguments():
         CloudSamplerConfig(n_seeds=0)
     with pytest.raises(CloudError, match="opening_margin"):
         CloudSamplerConfig(opening_margin=0.08)
+
+
+BOARD = np.array([0.2, 0.15, 0.01])
+"""Half extents of a board (m) whose underside the cameras never see."""
+
+
+@pytest.fixture(scope="module")
+def board_clouds():
+    """(the board seen from above and from its edges: no underside, the whole board)."""
+    board = trimesh.creation.box(extents=2.0 * BOARD)
+    points, normals = surface_points(board.vertices, board.faces, 4096, np.random.default_rng(3))
+    seen = normals[:, 2] > -0.5
+    return check_cloud(points[seen], normals[seen]), check_cloud(points, normals)
+
+
+def test_enclosing_grasps_hold_a_board_seen_from_one_side(board_clouds):
+    """The antipodal sampler finds nothing on a board without its underside; the enclosing
+    grasps close across its thickness, on the cloud, without touching the whole board."""
+    seen, whole = board_clouds
+    assert cloud_dual_candidates(seen, rng=np.random.default_rng(4)).n == 0
+    config = CloudSamplerConfig(enclosing=True)
+    cands = cloud_dual_candidates(seen, config, rng=np.random.default_rng(4))
+    assert cands.n > 20
+    grasps = cands.grasps
+    assert grasps.counts["enclosing_grasps"] == grasps.n
+    spacing = seen.spacing
+    across = np.abs(grasps.poses[:, 2, 0]) > 0.9  # closing axis within 26 degrees of vertical
+    assert across.mean() > 0.9
+    # the lowest edge point seen is up to a cloud spacing or two above the underside
+    assert (np.abs(grasps.widths[across] - 2.0 * BOARD[2]) <= 2.0 * spacing).all()
+    on_board = np.abs((np.abs(grasps.contact_points) - BOARD).max(axis=-1))
+    assert on_board.max() <= spacing
+    # the unseen underside's contact normal is assumed to face its finger
+    lower = np.argmin(grasps.contact_points[..., 2], axis=1)
+    assumed = grasps.contact_normals[np.arange(grasps.n), lower]
+    finger_side = np.where(lower == 0, 1.0, -1.0)[:, None] * grasps.poses[:, :3, 0]
+    assert np.allclose(assumed, finger_side)
+    # ... and the other contact is on a face seen to face its finger (the board's top)
+    upper = 1 - lower
+    seen_normal = seen.normals[grasps.face_ids[np.arange(grasps.n), upper]]
+    facing = np.where(upper == 0, 1.0, -1.0) * np.einsum(
+        "nk,nk->n", seen_normal, grasps.poses[:, :3, 0]
+    )
+    assert (facing >= math.cos(math.atan(PAPER.mu))).all()
+    assert np.allclose(seen_normal[:, 2], 1.0)
+    # The closed fingers miss what was seen; the open hand misses the whole board too (the
+    # planned width is what was seen: the fingers close on until they meet the underside).
+    tol = CloudSamplerConfig().tolerance
+    for pose, width in zip(grasps.poses, grasps.widths, strict=True):
+        for cloud, boxes in (
+            (seen, (*PANDA.collision_boxes(None), *PANDA.finger_boxes(float(width)))),
+            (whole, PANDA.collision_boxes(None)),
+        ):
+            local = (cloud.points - pose[:3, 3]) @ pose[:3, :3]
+            for box in boxes:
+                lo = np.asarray(box.center) - np.asarray(box.half_extents) + tol
+                hi = np.asarray(box.center) + np.asarray(box.half_extents) - tol
+                assert not ((local > lo) & (local < hi)).all(axis=1).any()
+
+
+def test_enclosing_grasps_refuse_a_face_wider_than_the_hand():
+    """A flat face alone (a wall seen from the front) holds nothing the jaws can close on away
+    from its border (at the border a finger can reach round it)."""
+    rng = np.random.default_rng(0)
+    points = np.column_stack([rng.uniform(-0.3, 0.3, (2000, 2)), np.zeros(2000)])
+    normals = np.tile([0.0, 0.0, 1.0], (2000, 1))
+    config = CloudSamplerConfig(enclosing=True)
+    grasps = sample_enclosing_grasps(check_cloud(points, normals), config, rng)
+    assert grasps.counts["enclosing_poses"] > 0
+    to_border = 0.3 - np.abs(grasps.contact_points[..., :2]).max(axis=-1)
+    assert (to_border < PANDA.max_opening).all()
+    assert grasps.n < 10
+
+
+def test_bad_enclosing_arguments():
+    with pytest.raises(CloudError, match="enclosing_reach: expected at most the pad length"):
+        CloudSamplerConfig(enclosing_reach=0.06)
+    with pytest.raises(CloudError, match="enclosing: expected a bool, found int"):
+        CloudSamplerConfig(enclosing=1)
+    with pytest.raises(CloudError, match="n_closing"):
+        CloudSamplerConfig(n_closing=0)

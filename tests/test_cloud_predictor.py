@@ -2,15 +2,28 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
 
-from baselines.cloud_grasps import CloudError, check_cloud, cloud_dual_candidates
-from baselines.cloud_predictor import CloudPredictor, camera_cloud, cgdf_predictor
+from baselines.cloud_grasps import (
+    CloudError,
+    check_cloud,
+    cloud_dual_candidates,
+    hands_in_seen_free_space,
+)
+from baselines.cloud_predictor import (
+    CloudPredictor,
+    camera_cloud,
+    camera_views,
+    cgdf_predictor,
+    random_partial_predictor,
+)
 from dataset_gen.cli import main
+from dataset_gen.gripper import PANDA
 from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
 from dg16m_env.evaluators import load_benchmark_ref
 from dg16m_env.evaluators.fce import REASONS, fce_verdicts
@@ -99,11 +112,49 @@ def test_camera_cloud_shapes_and_one_camera_sees_no_antipodal_pair_on_a_box():
 
 def test_the_partial_predictor_runs_and_bad_arguments_are_refused(observations):
     _, obs = observations["bench-1000000"]
-    poses, scores = CloudPredictor("random", view="partial", n_points=4096)(obs)
+    poses, scores = random_partial_predictor(obs)
     assert 1 <= len(poses) <= 10
     assert poses.shape[1:] == (2, 4, 4)
     assert scores.shape == (len(poses),)
+    _, cands, _ = random_partial_predictor.candidates(obs)
+    assert cands.counts["enclosing_grasps"] > 0
+    assert "unseen_space" not in cands.counts  # free_space is off by default
+    seen_free = dataclasses.replace(random_partial_predictor, free_space=True)
+    _, fewer, _ = seen_free.candidates(obs)
+    assert fewer.counts["unseen_space"] + fewer.counts["enclosing_unseen_space"] > 0
+    assert fewer.grasps.n < cands.grasps.n
     with pytest.raises(CloudError, match="ranker: expected one of"):
         CloudPredictor("best")  # type: ignore[arg-type]
     with pytest.raises(CloudError, match="object_id: expected a non-empty str"):
         cgdf_predictor({"points": obs["points"]})
+
+
+def test_depth_views_tell_space_seen_empty_from_space_behind_a_surface():
+    """One camera above a board: above it is seen empty, just under it is not (the board hides
+    it), nor is a point outside the picture; a hand under the board is refused, one above is
+    not."""
+    board = trimesh.creation.box(extents=(0.4, 0.3, 0.02))
+    obs = {
+        "mesh_vertices": np.asarray(board.vertices),
+        "mesh_faces": np.asarray(board.faces),
+        "bounds": np.asarray(board.bounds),
+    }
+    points, normals, views = camera_views(obs, np.random.default_rng(0), n_cameras=1)
+    assert views.distance.shape == (1, 128, 128)
+    assert np.isfinite(views.distance).sum() == len(points) == len(normals)
+    above, under, away = [0.0, 0.0, 0.06], [0.0, 0.0, -0.03], [10.0, 10.0, 10.0]
+    assert views.seen_free(np.array([above, under, away]), 0.005).tolist() == [True, False, False]
+    down = np.eye(4)
+    down[:3, :3] = [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]  # y (approach) = -z
+    high, low = down.copy(), down.copy()
+    high[2, 3] = 0.01 + 0.02 + PANDA.finger_tip  # fingertips 2 cm above the board
+    low[2, 3] = -0.012  # the palm's top 2 mm under the board, the rest below
+    assert hands_in_seen_free_space(views, np.stack([high, low]), PANDA, 0.01).tolist() == [
+        True,
+        False,
+    ]
+    skip = np.ones((2, 2), dtype=bool)  # leaving out the fingers keeps the palm's test
+    assert hands_in_seen_free_space(views, np.stack([high, low]), PANDA, 0.01, skip).tolist() == [
+        True,
+        False,
+    ]

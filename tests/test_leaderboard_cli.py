@@ -186,3 +186,27 @@ def test_baseline_entries_script(tmp_path: Path, bench: Path) -> None:
     assert again.returncode == 0, again.stdout + again.stderr
     assert again.stdout.count("skipped") == 4
     assert db_dump(db) == before
+
+
+def test_baseline_entries_script_submits_predictors(tmp_path: Path, bench: Path) -> None:
+    """``--predictors`` runs each module:callable predictor (here the point-cloud random-rank
+    control) and puts its submission on the board; ``--strategies ''`` leaves the pairing
+    references out; a second run adds nothing."""
+    import subprocess
+    import sys
+
+    script = Path(__file__).resolve().parents[1] / "scripts" / "leaderboard_baselines.py"
+    db = tmp_path / "board.db"
+    command = [sys.executable, str(script), "--db", str(db), "--benchmark", str(bench)]
+    command += ["--k", "2", "--evaluators", "fce", "--no-progress", "--strategies", ""]
+    command += ["--predictors", "baselines.cloud_predictor:random_predictor"]
+    first = subprocess.run(command, capture_output=True, text=True, timeout=300, check=False)
+    assert first.returncode == 0, first.stdout + first.stderr
+    assert "random_predictor: wrote" in first.stdout
+    rows = Board(db, create=False).submissions()
+    assert [(r["label"], r["status"]) for r in rows] == [("baseline: random_predictor", "scored")]
+    before = db_dump(db)
+    again = subprocess.run(command, capture_output=True, text=True, timeout=300, check=False)
+    assert again.returncode == 0, again.stdout + again.stderr
+    assert again.stdout.count("skipped") == 1
+    assert db_dump(db) == before

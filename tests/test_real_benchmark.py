@@ -333,7 +333,9 @@ def test_admission_rule_rejects_an_object_without_enough_passing_pairs(tmp_path:
         BuildLimits(min_passing=-1)
 
 
-def test_real_build_replaces_rejected_objects_and_checks_hashes(tmp_path: Path) -> None:
+def test_real_build_replaces_rejected_objects_and_checks_hashes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     meshes = _import_folder(
         tmp_path / "import",
         {
@@ -356,6 +358,24 @@ def test_real_build_replaces_rejected_objects_and_checks_hashes(tmp_path: Path) 
     assert final["benchmark"] == ["a-plank", "b-plank"]
     assert final["rejected"]["a-cube"]["stage"] == "screen"
     assert final["train"] == []
+    # resumed from the same split, the folder's rejection stands: the cube is not built again
+    import dg16m_env.real_benchmark as real_benchmark
+
+    asked: list[str] = []
+
+    def spy(sources, *args, **kwargs):
+        asked.extend(s.object_id for s in sources)
+        return build_objects(sources, *args, **kwargs)
+
+    build_objects = real_benchmark.build_objects
+    monkeypatch.setattr(real_benchmark, "build_objects", spy)
+    _, resumed = build_real_benchmark(
+        meshes, tmp_path / "out", split=split, params=TINY, limits=limits, progress=False
+    )
+    monkeypatch.undo()
+    assert asked == ["a-plank", "b-plank"]
+    assert resumed["benchmark"] == final["benchmark"]
+    assert resumed["rejected"]["a-cube"] == final["rejected"]["a-cube"]
     bench = read_benchmark(path)
     assert [o.object_id for o in bench.objects] == ["a-plank", "b-plank"]
     assert all(o.has_mesh for o in bench.objects)
