@@ -1,0 +1,92 @@
+"""Compare `dg16m evaluate` results of several predictors on the same objects.
+
+    python scripts/compare_results.py runs/a.json runs/b.json [...]
+
+For each results file (the ``--out`` JSON of ``dg16m evaluate --evaluators fce,gsr``): the dual
+grasps submitted, FCE, GSR (the mean over all submitted grasps, DESIGN.md) with an
+object-resampled 95% interval, the valid-only and gravity-level rates, the share of trials not
+run (invalid), and for every file after the first the paired object-bootstrap difference of its
+GSR minus the first file's (the same resampled objects for both). Only the objects every file
+scored are used. The bootstrap is seeded (``--seed``), so the output is reproducible.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("results", type=Path, nargs="+", help="dg16m evaluate --out JSON files")
+    parser.add_argument("--resamples", type=int, default=2000, help="bootstrap resamples (2000)")
+    parser.add_argument("--seed", type=int, default=0, help="bootstrap seed (0)")
+    return parser.parse_args(argv)
+
+
+def load_results(path: Path) -> dict[str, Any]:
+    """The ``results`` of a results file, which must hold both ``fce`` and ``gsr``."""
+    try:
+        results = json.loads(path.read_text(encoding="utf-8"))["results"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise SystemExit(f"{path}: expected a dg16m evaluate results file, found {exc!r}") from None
+    missing = [e for e in ("fce", "gsr") if e not in results]
+    if missing:
+        raise SystemExit(f"{path}: expected results of fce and gsr, found none of {missing}")
+    return results
+
+
+def pooled_gsr(grasps: np.ndarray, gsr: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """GSR over all grasps of the objects ``rows`` (..., n) of per-object ``grasps`` and
+    ``gsr`` (n,): ``sum(grasps * gsr) / sum(grasps)`` along the last axis."""
+    return (grasps[rows] * gsr[rows]).sum(-1) / np.maximum(grasps[rows].sum(-1), 1)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parse_args(argv)
+    loaded = {path: load_results(path) for path in args.results}
+    per_object = {p: r["gsr"]["per_object"] for p, r in loaded.items()}
+    ids = sorted(set.intersection(*(set(v) for v in per_object.values())))
+    if not ids:
+        raise SystemExit("expected objects that every file scored, found none in common")
+    boot = np.random.default_rng(args.seed).integers(0, len(ids), (args.resamples, len(ids)))
+    every = np.arange(len(ids))
+    first: np.ndarray | None = None
+    for path, results in loaded.items():
+        grasps = np.array([per_object[path][i]["grasps"] for i in ids], dtype=float)
+        gsr = np.array([per_object[path][i]["gsr"] for i in ids], dtype=float)
+        resampled = pooled_gsr(grasps, gsr, boot)
+        low, high = np.percentile(resampled, [2.5, 97.5])
+        metrics = results["gsr"]["metrics"]
+        details = results["gsr"]["details"]
+        invalid = details["statuses"].get("invalid", 0) / max(details["trials"], 1)
+        line = (
+            f"{path}: {len(ids)} objects, {int(grasps.sum())} grasps, "
+            f"fce {100 * results['fce']['metrics']['fce']['rate']:.1f}%, "
+            f"gsr {100 * pooled_gsr(grasps, gsr, every):.1f}% [{100 * low:.1f}, {100 * high:.1f}], "
+            f"valid-only {100 * metrics['gsr_valid']['rate']:.1f}%, "
+            f"gravity {100 * metrics['gsr_gravity']['rate']:.1f}%, invalid {100 * invalid:.1f}%"
+        )
+        if first is None:
+            first = resampled
+            base = pooled_gsr(grasps, gsr, every)
+        else:
+            diff = resampled - first
+            d_low, d_high = np.percentile(diff, [2.5, 97.5])
+            delta = pooled_gsr(grasps, gsr, every) - base
+            line += (
+                f"; minus the first {100 * delta:+.1f} points "
+                f"[{100 * d_low:+.1f}, {100 * d_high:+.1f}]"
+            )
+        print(line)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,50 @@
+"""scripts/compare_results.py: GSR over all submitted grasps and paired differences."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "compare_results.py"
+
+
+def _script():
+    spec = importlib.util.spec_from_file_location("compare_results", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _results(path: Path, per_object: dict[str, tuple[int, float]]) -> Path:
+    gsr = {
+        "per_object": {k: {"grasps": n, "gsr": g} for k, (n, g) in per_object.items()},
+        "metrics": {"gsr_valid": {"rate": 0.5}, "gsr_gravity": {"rate": 0.9}},
+        "details": {"statuses": {"invalid": 9, "success": 81}, "trials": 90},
+    }
+    fce = {"metrics": {"fce": {"rate": 0.25}}}
+    path.write_text(json.dumps({"results": {"fce": fce, "gsr": gsr}}))
+    return path
+
+
+def test_gsr_weighs_objects_by_their_grasps_and_differences_are_paired(tmp_path, capsys):
+    a = _results(tmp_path / "a.json", {"x": (10, 1.0), "y": (10, 0.0), "z": (10, 0.5)})
+    b = _results(tmp_path / "b.json", {"x": (5, 1.0), "y": (10, 0.0), "z": (10, 0.5), "w": (1, 1)})
+    assert _script().main([str(a), str(b)]) == 0
+    first, second = capsys.readouterr().out.splitlines()
+    assert "3 objects, 30 grasps" in first
+    assert "gsr 50.0%" in first
+    assert "invalid 10.0%" in first
+    # b: (5 * 1 + 10 * 0 + 10 * 0.5) / 25 = 40%; the object only b scored is left out
+    assert "3 objects, 25 grasps" in second
+    assert "gsr 40.0%" in second
+    assert "minus the first -10.0 points" in second
+
+
+def test_a_file_without_gsr_is_refused(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"results": {"fce": {}}}))
+    with pytest.raises(SystemExit, match="expected results of fce and gsr"):
+        _script().main([str(bad)])
