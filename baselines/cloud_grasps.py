@@ -765,7 +765,7 @@ def enclose(
     top, bottom, size = _grouped_extremes(pose, gx, n)
     index = np.full((n, 2), -1, dtype=np.int64)
     local_x = np.zeros((n, 2))
-    ok = (size >= 2) & (top >= 0)
+    ok = size >= 2
     index[ok, 0], index[ok, 1] = point[top[ok]], point[bottom[ok]]
     local_x[ok, 0], local_x[ok, 1] = gx[top[ok]], gx[bottom[ok]]
     return index, local_x
@@ -793,9 +793,10 @@ def sample_enclosing_grasps(
 
     Returns:
         :class:`~dataset_gen.sampling.SingleArmGrasps` (at most one per seed, its narrowest
-        collision-free closing axis; at most ``max_grasps``); ``face_ids`` are the contacts' cloud indices; a contact normal is the
-        cloud's where it lies in the friction cone about the closing axis, else the closing axis
-        itself (the face the finger meets was not seen: it is assumed to face the finger).
+        collision-free closing axis; at most ``max_grasps``); ``face_ids`` are the contacts'
+        cloud indices; a contact normal is the cloud's where it lies in the friction cone about
+        the closing axis, else the closing axis itself (the face the finger meets was not seen:
+        it is assumed to face the finger).
     """
     model = get_gripper(config.gripper)
     counts = {} if counts is None else counts
@@ -821,7 +822,8 @@ def sample_enclosing_grasps(
     # closing axis): jaws that would close on nothing but assumed faces were, on 60 procedural
     # objects, in the object at the start 48 times in 121 (30 in 483 with one face seen).
     cos_cone = math.cos(math.atan(config.mu))
-    ok &= (facing0 >= cos_cone) | (facing1 >= cos_cone)
+    assumed_face = np.stack([facing0 < cos_cone, facing1 < cos_cone], axis=1)  # (N, 2)
+    ok &= ~assumed_face.all(axis=1)
     # A held point at the edge of the opening: the part goes on past the open finger (the
     # collision test below would find it; this is the cheap test first).
     clearance = config.clearance_factor * cloud.spacing
@@ -844,10 +846,9 @@ def sample_enclosing_grasps(
     counts["enclosing_collision_free"] = int(ok.sum())
     if views is not None:
         rows = np.flatnonzero(ok)
-        unseen_faces = np.stack([facing0[rows] < cos_cone, facing1[rows] < cos_cone], axis=1)
-        unseen_faces |= not config.free_space_fingers
+        skip = assumed_face[rows] | (not config.free_space_fingers)
         ok[rows] = hands_in_seen_free_space(
-            views, centred[rows], model, config.free_space_margin, unseen_faces
+            views, centred[rows], model, config.free_space_margin, skip
         )
         counts["enclosing_unseen_space"] = len(rows) - int(ok[rows].sum())
     per_seed = ok.reshape(n_seeds, config.n_closing)
@@ -857,9 +858,8 @@ def sample_enclosing_grasps(
     counts["enclosing_grasps"] = len(chosen)
     x_chosen = x_axis[chosen]
     normals = np.stack([n0[chosen], n1[chosen]], axis=1)
-    inferred = np.stack([facing0[chosen] < cos_cone, facing1[chosen] < cos_cone], axis=1)
     assumed = np.stack([x_chosen, -x_chosen], axis=1)
-    normals = np.where(inferred[..., None], assumed, normals)
+    normals = np.where(assumed_face[chosen][..., None], assumed, normals)
     return SingleArmGrasps(
         poses=centred[chosen].reshape(-1, 4, 4),
         contact_points=cloud.points[index[chosen]].reshape(-1, 2, 3),
