@@ -33,8 +33,8 @@ casts the observation's mesh from cameras placed as the environments place their
 (:func:`dg16m_env.envs.cameras.draw_cameras` around the object's box: azimuth spread around,
 elevation -70 to -15 degrees, distance 0.9-1.2 x 2.2 x the bounding radius; MuJoCo's default
 45-degree field of view, ``camera_resolution`` square pixels) and keeps each pixel's first hit
-with that face's outward normal, then ``n_points`` of them (:func:`~dg16m_env.envs.cameras.
-fixed_size`). For procedural objects the mesh is the simulated geometry, so this is the
+with that face's outward normal, then ``n_points`` of them
+(:func:`~dg16m_env.envs.cameras.fixed_size`). For procedural objects the mesh is the simulated geometry, so this is the
 environments' ``obs_mode="partial"`` cloud up to the camera draw; it needs no OpenGL. One camera
 never sees two antipodal contacts of a convex object, so the partial predictors default to two
 cameras on roughly opposite sides (``MAX_CAMERAS`` of the environments).

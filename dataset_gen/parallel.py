@@ -235,8 +235,9 @@ def run_resumable(
     one).
 
     Raises:
-        ``error``: bad worker count or backend, duplicate ids, or ``root`` holds a manifest of
-            another kind or made with other parameters.
+        Dg16mError: the class passed as ``error``, for a bad worker count or backend, duplicate
+            ids, or a ``root`` that holds a manifest of another kind or made with other
+            parameters.
     """
     check_backend(backend, workers, error)
     ids = [item.object_id for item in items]

@@ -59,7 +59,12 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         help="module:callable predictors to submit too, comma-separated (default none)",
     )
     parser.add_argument("--k", type=int, default=10, help="dual grasps per object (10)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the reference strategies and of the predictors' observations (0)",
+    )
     parser.add_argument("--workers", type=int, default=1, help="local processes")
     parser.add_argument("--queue-only", action="store_true", help="queue; leave scoring to workers")
     parser.add_argument("--no-progress", action="store_true")
@@ -107,6 +112,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             PredictorSpec(target=target),
             out / f"{name}.h5",
             benchmark=ref,
+            seed=args.seed,  # the observations' point clouds
             max_grasps=args.k,
             progress=not args.no_progress,
         )

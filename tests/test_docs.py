@@ -111,6 +111,13 @@ def test_pages_for_every_environment_and_package(site: Path) -> None:
     for package in ("dataset_gen", "dg16m_env", "baselines", "leaderboard"):
         page = (site / "api" / f"{package}.html").read_text(encoding="utf-8")
         assert f'id="module-{package}"' in page
+    # a constant's docstring "The real benchmark's parameters: the defaults ..." is prose, not
+    # napoleon's "type: description" (docs/_ext/dg16m_docs.py, prose_before_colon)
+    api = (site / "api" / "dg16m_env.html").read_text(encoding="utf-8")
+    entry = api[api.index('id="dg16m_env.real_benchmark.REAL_PARAMETERS"') :][:8000]
+    entry = entry[: entry.index('id="dg16m_env.real_benchmark.REAL_LIMITS"')]
+    assert "benchmark’s parameters: the defaults" in entry.replace("&#8217;", "’")
+    assert "Type:" not in entry
     cli = (site / "cli.html").read_text(encoding="utf-8")
     assert "dg16m leaderboard serve" in cli
     assert "dg16m demo" in cli

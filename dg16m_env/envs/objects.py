@@ -37,7 +37,7 @@ class BenchmarkObjects:
         mesh_root: folder of a mesh benchmark's meshes.
 
     Raises:
-        ValueError (``EvaluatorError`` / ``BenchmarkError``): an unknown id or a bad file.
+        ValueError: an unknown id or a bad file (an ``EvaluatorError`` or a ``BenchmarkError``).
     """
 
     def __init__(

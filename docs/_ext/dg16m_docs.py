@@ -848,12 +848,44 @@ def optional_pages(app: Sphinx, docname: str, source: list[str]) -> None:
     source[0] = source[0].replace("<!-- optional pages -->", "\n".join(present))
 
 
+_NAPOLEON_TYPE = re.compile(r"^:type: (.+)$")
+
+
+def prose_before_colon(
+    app: Sphinx, what: str, name: str, obj: Any, options: Any, lines: list[str]
+) -> None:
+    """``autodoc-process-docstring``, after napoleon: napoleon reads the first line of a data or
+    attribute docstring as ``type: description``, so "The real benchmark's parameters: the
+    defaults ..." came out as the type "The real benchmark's parameters". A "type" of two or more
+    words (brackets aside, as in ``(N, 3) float``) is prose: it is put back in front of the
+    text it was cut from."""
+    if what not in ("data", "attribute", "property"):
+        return
+    for index, line in enumerate(lines):
+        match = _NAPOLEON_TYPE.match(line)
+        if match is None:
+            continue
+        words = re.sub(r"\[[^\]]*\]|\([^)]*\)", " ", match.group(1)).split()
+        if len(words) < 2:
+            return
+        del lines[index]
+        if index > 0 and not lines[index - 1].strip():
+            del lines[index - 1]
+        first = next((k for k, text in enumerate(lines) if text.strip()), None)
+        if first is None:
+            lines.insert(0, match.group(1))
+        else:
+            lines[first] = f"{match.group(1)}: {lines[first]}"
+        return
+
+
 def setup(app: Sphinx) -> dict[str, Any]:
     """Register the generators and the docstring hook."""
     app.connect("builder-inited", generate)
     app.connect("source-read", optional_pages)
     app.add_directive("dg16m-parameters", ParametersDirective)
     app.connect("autodoc-process-docstring", docstring_rubrics)
+    app.connect("autodoc-process-docstring", prose_before_colon, priority=900)  # after napoleon
     app.connect("autodoc-process-signature", plain_signature_of_instances, priority=100)
     app.connect("missing-reference", resolve_reexports)
     app.connect("warn-missing-reference", lenient_api_references)
