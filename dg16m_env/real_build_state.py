@@ -35,6 +35,7 @@ from typing import Any
 from dataset_gen.atomic import write_bytes_atomic, write_json_atomic
 from dataset_gen.io.manifest import MANIFEST_NAME, read_manifest
 from dg16m_env.benchmark import BenchmarkError
+from dg16m_env.real_benchmark import import_entries
 
 STATE_FORMAT = "dg16m-real-build-state"
 STATE_SCHEMA_VERSION = 1
@@ -74,22 +75,6 @@ def _unpack(path: Path) -> bytes:
         raise BenchmarkError(f"{path}: expected xz data, found {exc}") from None
 
 
-def _import_entries(meshes: Path) -> dict[str, Any]:
-    path = meshes / MANIFEST_NAME
-    try:
-        manifest = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise BenchmarkError(
-            f"{meshes}: expected an import folder with {MANIFEST_NAME} "
-            f"('dg16m objects import-sweethome3d'), found {type(exc).__name__}: {exc}"
-        ) from None
-    if manifest.get("kind") != "sweethome3d-import":
-        raise BenchmarkError(
-            f"{path}: expected kind 'sweethome3d-import', found {manifest.get('kind')!r}"
-        )
-    return dict(manifest["entries"])
-
-
 def save_build_state(
     meshes: str | os.PathLike[str],
     build: str | os.PathLike[str] | None,
@@ -109,7 +94,7 @@ def save_build_state(
             build without its manifest or with a listed object file missing.
     """
     source, state = Path(meshes), Path(to)
-    entries = _import_entries(source)
+    entries = import_entries(source)
     written = 0
     carried = 0
     for object_id, entry in sorted(entries.items()):
@@ -216,7 +201,7 @@ def restore_build_state(
     """
     root = Path(state)
     _check_state(root)
-    entries = _import_entries(root / MESHES)
+    entries = import_entries(root / MESHES)
     target = Path(meshes)
     written = restored = 0
     for object_id, entry in sorted(entries.items()):
