@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dataset_gen.errors import Dg16mError
+from dg16m_env.real_benchmark import read_split
 from dg16m_env.real_build_state import restore_build_state, save_build_state
 
 DEFAULT_STATE = Path(__file__).resolve().parents[1] / "data" / "real-build"
@@ -41,6 +42,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     print(f"{args.action}: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
+    missing = sorted(i for i in read_split()["sha256"] if not (args.meshes / f"{i}.obj").is_file())
+    if missing:  # the build's replacements need them; a plain rerun would retry refused models
+        print(
+            f"{len(missing)} objects of the split are not imported yet; import them with\n"
+            f"  dg16m objects import-sweethome3d --out {args.meshes} --workers 2 --ids "
+            + ",".join(missing)
+        )
     return 0
 
 

@@ -296,18 +296,33 @@ def test_files_without_the_new_datasets_still_read(mesh_build: Path, tmp_path: P
 
 
 @pytest.mark.skipif(not EMBEDDED_BENCHMARK.is_file(), reason="no shipped benchmark file")
-def test_the_shipped_file_reads_and_says_what_it_lacks() -> None:
+def test_the_shipped_file_carries_what_the_code_writes() -> None:
+    """The shipped file was rebuilt with the current code (issue 29): it stores every dataset a
+    build writes now, and its hand-line distances are those of its own poses and objects."""
+    with h5py.File(EMBEDDED_BENCHMARK, "r") as f:
+        for key in ("grasps/reseat_shift", "grasps/hand_line_distance"):
+            assert key in f, key
     bench = read_benchmark(EMBEDDED_BENCHMARK)
-    assert bench.hand_line_distance is None
-    assert bench.reseat_shift.shape == (bench.n, 2)
-    assert not bench.reseat_shift.any()
+    assert bench.hand_line_distance is not None
+    assert bench.hand_line_distance.shape == (bench.n,)
+    assert np.all(np.isfinite(bench.hand_line_distance))
+    assert not bench.reseat_shift.any()  # the procedural benchmark is built without re-seating
+    # the stored distances of one object's rows, recomputed from its scene and poses
+    first = bench.objects[0]
+    rows = bench.object_rows(first.object_id)
+    loaded = first.load()
+    centres = grasp_centres(compile_scene(loaded), bench.poses[rows])
+    expected = hand_line_distance(centres, loaded.mass_properties.center_of_mass)
+    np.testing.assert_allclose(bench.hand_line_distance[rows], expected, rtol=1e-6, atol=1e-9)
     report = benchmark_report(bench, n_resamples=50)
-    assert report["hand_line"] is None
+    assert report["hand_line"] is not None
+    assert set(report["hand_line"]["by_arm"]) == {"fc_pass", "fc_fail", "random", "farthest"}
     assert report["reseat"]["objects"] == 0
     assert sum(sum(v.values()) for v in report["invalid_by_object"].values()) == int(
         (~bench.trials.valid).sum()
     )
     assert report["contacts_after_close"]["pooled"]["valid"] == int(bench.trials.valid.sum())
+    assert "not stored (older file" not in format_summary(bench)
 
 
 # --------------------------------------------------------------------------------------------
