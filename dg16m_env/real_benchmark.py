@@ -332,14 +332,20 @@ def real_sources(
     records (and then hashed as arrays into the benchmark file).
 
     Raises:
-        BenchmarkError: a missing mesh, or one whose bytes differ from the recorded hash.
+        BenchmarkError: missing meshes (all named, with the import command that makes them), or
+            one whose bytes differ from the recorded hash.
     """
     root = Path(meshes)
+    missing = [i for i in ids if not (root / f"{i}.obj").is_file()]
+    if missing:  # e.g. replacements of rejected objects, beyond what a partial import holds
+        raise BenchmarkError(
+            f"{root}: expected a mesh for each of the {len(ids)} objects to build, found none for "
+            f"{len(missing)} ({', '.join(missing[:3])}{', ...' if len(missing) > 3 else ''}); "
+            f"import them: dg16m objects import-sweethome3d --out {root} --ids " + ",".join(missing)
+        )
     out = []
     for object_id in ids:
         path = root / f"{object_id}.obj"
-        if not path.is_file():
-            raise BenchmarkError(f"{object_id}: expected its mesh {path}, found none")
         expected = split["sha256"].get(object_id)
         found = file_sha256(path)
         if expected != found:

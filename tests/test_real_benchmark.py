@@ -403,6 +403,13 @@ def test_real_build_replaces_rejected_objects_and_checks_hashes(
     _plank(meshes, "b-plank", (0.4, 0.07, 0.3))
     with pytest.raises(BenchmarkError, match="the mesh changed since the split was made"):
         real_sources(meshes, ["b-plank"], split)
+    # meshes not imported yet (a partial import) are all named, with the command that makes them
+    with pytest.raises(
+        BenchmarkError,
+        match=r"found none for 2 \(x-one, x-two\); import them: "
+        r"dg16m objects import-sweethome3d --out .* --ids x-one,x-two$",
+    ):
+        real_sources(meshes, ["b-plank", "x-one", "x-two"], split)
     # ... until the split is revised with the new bytes: the object is then built again, not
     # reused from the build folder
     manifest_path = meshes / "manifest.json"
