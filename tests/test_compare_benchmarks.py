@@ -2,23 +2,19 @@
 
 from __future__ import annotations
 
-import importlib.util
 from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from script_loader import load_script
 
 from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
 
 TINY_REAL = Path(__file__).parent / "data" / "real_tiny" / "benchmark.h5"
-SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "compare_benchmarks.py"
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("compare_benchmarks", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("bench/compare_benchmarks.py")
 
 
 def test_identical_and_changed(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

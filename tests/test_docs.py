@@ -21,6 +21,7 @@ from urllib.parse import unquote, urlsplit
 
 import pytest
 from browser import console_errors, screenshot, start_browser
+from script_loader import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -134,18 +135,12 @@ def test_pictures_are_small() -> None:
 
 def test_tutorial_predictor_gives_valid_grasps() -> None:
     """The tutorial's toy predictor returns what a submission accepts, for a real observation."""
-    import importlib.util
-
     from dataset_gen.procedural import make_procedural_object
     from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark
     from dg16m_env.observation import object_observation
     from dg16m_env.submission import hand_pose_faults
 
-    spec = importlib.util.spec_from_file_location("my_grasps", DOCS / "tutorials" / "my_grasps.py")
-    assert spec is not None
-    assert spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_script(DOCS / "tutorials" / "my_grasps.py")
     bench = read_benchmark(EMBEDDED_BENCHMARK)
     first = bench.objects[0]
     obj = make_procedural_object(first.family, seed=first.seed)
