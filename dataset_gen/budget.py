@@ -111,8 +111,10 @@ def run_with_budget(
     seconds of the child's CPU time (stages without a budget are unlimited; the time before the
     first ``on_stage`` call is stage ``"start"``). CPU time, read from ``/proc`` (wall time where
     there is none), so that a loaded machine does not stop work a quiet one finishes; and at
-    :data:`WALL_FACTOR` times the budget in wall time, whatever the CPU. The seconds reported
-    per stage are wall seconds.
+    :data:`WALL_FACTOR` times the budget in wall time, whatever the CPU. The budget is checked
+    every ``poll_s`` and again when the stage ends, so a stage that finishes past its budget
+    between two polls is stopped all the same (the verdict does not depend on ``poll_s`` or on
+    how fast the machine is). The seconds reported per stage are wall seconds.
 
     Args:
         fn: a module-level function (it is pickled to the child) taking ``on_stage``.
@@ -141,6 +143,9 @@ def run_with_budget(
         cpu = _cpu_seconds(process.pid) if process.pid is not None else None
         return time.monotonic() - started if cpu is None or cpu_start is None else cpu - cpu_start
 
+    def over_budget(budget: float, now: float) -> bool:  # CPU past it, or WALL_FACTOR x wall
+        return spent() > budget or now - started >= WALL_FACTOR * budget
+
     cpu_start = _cpu_seconds(process.pid) if process.pid is not None else None
     try:
         while True:
@@ -155,6 +160,11 @@ def run_with_budget(
                         f"code {process.exitcode} in stage {stage!r}"
                     ) from None
                 now = time.monotonic()
+                if budget is not None and over_budget(budget, now):
+                    # a stage that ended past its budget between two polls is past it all the
+                    # same: the verdict must not depend on poll_s or on how fast the machine is
+                    times[stage] = times.get(stage, 0.0) + now - started
+                    raise StageTimeoutError(stage, budget, times)
                 if kind == "stage":
                     times[stage] = times.get(stage, 0.0) + now - started
                     stage, started = value, now
@@ -168,9 +178,7 @@ def run_with_budget(
                     value.stage_times = dict(times)  # where the time went, for the caller
                     raise value
                 raise RuntimeError(f"the worker process failed in stage {stage!r}:\n{value}")
-            if budget is not None and (
-                spent() >= budget or time.monotonic() - started >= WALL_FACTOR * budget
-            ):
+            if budget is not None and over_budget(budget, time.monotonic()):
                 times[stage] = time.monotonic() - started
                 raise StageTimeoutError(stage, budget, times)
             if not process.is_alive() and not receiver.poll():

@@ -253,6 +253,10 @@ def test_budget_stops_a_stage_that_runs_past_it() -> None:
     with pytest.raises(StageTimeoutError) as e:  # no CPU spent: stopped at 4 x in wall time
         run_with_budget(_sleeper, (), {"waiting": 0.5})
     assert e.value.stage == "waiting"
+    # a stage that ends past its budget before the first poll is past it all the same
+    with pytest.raises(StageTimeoutError, match="'slow' to finish within its budget") as e:
+        run_with_budget(_staged, (0.5,), {"slow": 0.05}, poll_s=120.0)
+    assert e.value.stage == "slow"
     done = run_with_budget(_staged, (0.0,), {"slow": 30.0})
     assert done.value == "done"
     assert set(done.times) == {"start", "quick", "slow"}
@@ -554,7 +558,7 @@ def test_a_stage_past_its_budget_is_recorded_with_its_stage(tmp_path: Path) -> N
     meshes = tmp_path / "meshes"
     meshes.mkdir()
     _plank(meshes, "plank")
-    limits = BuildLimits(min_passing=TINY.n_passing, label_s=0.01)  # no trial fits in 0.01 s
+    limits = BuildLimits(min_passing=TINY.n_passing, label_s=1e-3)  # no trials fit in 1 ms
     out = tmp_path / "bench"
     with pytest.raises(BenchmarkError, match="found all failed: plank: expected stage 'label'"):
         build_benchmark(mesh_benchmark_sources(meshes), out, TINY, limits=limits, progress=False)
