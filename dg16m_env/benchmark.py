@@ -195,7 +195,7 @@ EMBEDDED_BENCHMARK = Path(__file__).with_name("data") / BENCHMARK_FILE
 """The procedural benchmark built with the default parameters, shipped with the package."""
 
 REAL_BENCHMARK = Path(__file__).with_name("data") / "benchmark_real.h5"
-"""The real-object benchmark (:mod:`dg16m_env.real_benchmark`), shipped once built."""
+"""The real-object benchmark (:mod:`dg16m_env.real_benchmark`): 300 furniture models, shipped."""
 
 SHIPPED_BENCHMARKS: Mapping[str, Path] = {"procedural": EMBEDDED_BENCHMARK, "real": REAL_BENCHMARK}
 """Benchmarks by short name; ``"procedural"`` is the default everywhere a benchmark is taken."""
@@ -215,8 +215,8 @@ def benchmark_file(benchmark: str | os.PathLike[str] | None = None) -> Path:
         if not path.is_file():
             raise BenchmarkError(
                 f"benchmark {benchmark!r}: expected the shipped file {path}, found none (this "
-                "installation does not ship it yet: build it with 'dg16m benchmark build-real' "
-                "and pass the path of its benchmark.h5)"
+                "installation lacks it: reinstall the package, or build it with "
+                "'dg16m benchmark build-real' and pass the path of its benchmark.h5)"
             )
         return path
     return Path(benchmark)

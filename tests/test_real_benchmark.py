@@ -438,21 +438,25 @@ def test_real_build_replaces_rejected_objects_and_checks_hashes(
 # --------------------------------------------------------------------------------------------
 
 
-def test_benchmarks_by_short_name(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_benchmarks_by_short_name(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from dg16m_env import benchmark as benchmark_module
+
     assert benchmark_file(None) == EMBEDDED_BENCHMARK
     assert benchmark_file("procedural") == EMBEDDED_BENCHMARK
     assert benchmark_file(str(tmp_path / "x.h5")) == tmp_path / "x.h5"
-    from dg16m_env.benchmark import REAL_BENCHMARK
-
-    if not REAL_BENCHMARK.is_file():
-        with pytest.raises(BenchmarkError, match="does not ship it yet"):
-            benchmark_file("real")
-        with pytest.raises(SystemExit) as exit_info:  # argparse refuses the argument
-            cli_main(["benchmark", "info", "real"])
-        assert exit_info.value.code == 2
-        assert "does not ship it yet" in capsys.readouterr().err
-    else:
-        assert benchmark_file("real") == REAL_BENCHMARK
+    if benchmark_module.REAL_BENCHMARK.is_file():
+        assert benchmark_file("real") == benchmark_module.REAL_BENCHMARK
+    # an installation without the file says so, from Python and from the command line
+    missing = {"procedural": EMBEDDED_BENCHMARK, "real": tmp_path / "absent" / "benchmark_real.h5"}
+    monkeypatch.setattr(benchmark_module, "SHIPPED_BENCHMARKS", missing)
+    with pytest.raises(BenchmarkError, match="installation lacks it"):
+        benchmark_file("real")
+    with pytest.raises(SystemExit) as exit_info:  # argparse refuses the argument
+        cli_main(["benchmark", "info", "real"])
+    assert exit_info.value.code == 2
+    assert "installation lacks it" in capsys.readouterr().err
 
 
 def test_reproduce_passes_the_mesh_root_on(
