@@ -57,6 +57,9 @@ class Args:
     """dg16m (our force-closure verdicts) or da2 (DA2's frictionless criterion, same grasps)"""
     data: Path = Path("runs/train200")
     """a 'dg16m generate --split train' folder"""
+    more_data: str = ""
+    """further 'dg16m generate' folders, comma-separated, whose objects join those of --data
+    (the real training split beside the procedural one); --limit applies to each"""
     out: Path = Path("runs/classifiers")
     """output folder: checkpoint, learning curve, history, results"""
     limit: int = 0
@@ -83,6 +86,8 @@ class Args:
     """torch threads (the shipped checkpoints were trained with 1, two runs side by side)"""
     k: int = 10
     """top-k of the benchmark evaluation"""
+    benchmark: str = "procedural"
+    """the benchmark of the evaluation: a file, or a shipped one by name (procedural, real)"""
     evaluate: bool = True
     """score on the benchmark with the classifier evaluator at the end"""
 
@@ -177,7 +182,16 @@ def main(args: Args | None = None) -> dict[str, Any]:
     name = f"{args.model}-{args.labels}"
 
     # 1. data
-    objects = load_generated(args.data, limit=args.limit or None, seed=args.seed)
+    folders = [args.data, *(Path(f) for f in args.more_data.split(",") if f.strip())]
+    objects = [
+        o for f in folders for o in load_generated(f, limit=args.limit or None, seed=args.seed)
+    ]
+    ids = [o.object_id for o in objects]
+    if len(set(ids)) != len(ids):
+        repeated = sorted({i for i in ids if ids.count(i) > 1})
+        raise ClassifierDataError(
+            f"--data and --more-data: expected distinct objects, found {repeated[:3]} twice"
+        )
     train, val = split_objects(objects, args.val_fraction, args.seed)
     positives = sum(int(o.labels[args.labels].sum()) for o in train)
     total = sum(len(o.poses) for o in train)
@@ -221,7 +235,12 @@ def main(args: Args | None = None) -> dict[str, Any]:
     save_checkpoint(
         checkpoint,
         model,
-        {"labels": args.labels, "steps": step, "train_seconds": train_s, "data": str(args.data)},
+        {
+            "labels": args.labels,
+            "steps": step,
+            "train_seconds": train_s,
+            "data": ",".join(str(f) for f in folders),
+        },
     )
     plot_history(args.out / f"{name}-curve.png", history, f"{name}: {step} steps, {train_s:.0f} s")
     write_json_atomic(args.out / f"{name}-history.json", history)
@@ -230,7 +249,9 @@ def main(args: Args | None = None) -> dict[str, Any]:
     results = {}
     if args.evaluate:
         model.eval()
-        results["classifier"] = make("classifier", k=args.k, progress=True).evaluate(model)
+        results["classifier"] = make(
+            "classifier", k=args.k, benchmark=args.benchmark, progress=True
+        ).evaluate(model)
         print(results["classifier"].format())
     write_run(
         args.out / f"{name}-results.json",

@@ -6,6 +6,10 @@ fc_pass counts, invalid nominal trials per arm, GSR per arm), from the folders t
     .venv/bin/python bench/real_build.py --import runs/real_meshes --json runs/real_numbers.json
     # how many imported objects pass the build's screen, per category (no CoACD, no trials)
     .venv/bin/python bench/real_build.py --import runs/real_meshes --screen --workers 2
+    # the targets, measured on a benchmark file alone (the shipped one: no build folder needed):
+    # fc_pass pairs and faces per object, invalid nominal trials per arm, hull-to-mesh
+    # deviation recomputed from the carried mesh and hulls
+    .venv/bin/python bench/real_build.py --shipped real --workers 2
 
 The wall time of a build is the sum of its objects' stage seconds over the worker count (the
 manifest records each object's seconds per stage; objects finished in an earlier session
@@ -15,6 +19,7 @@ count with the seconds they took then).
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import time
@@ -93,6 +98,83 @@ def build_numbers(folder: Path) -> dict[str, Any]:
     return out
 
 
+@functools.lru_cache(maxsize=1)
+def _read_once(path: str) -> Any:
+    """The benchmark, read once per worker process (the tasks index into it)."""
+    from dg16m_env.benchmark import read_benchmark
+
+    return read_benchmark(path)
+
+
+def _deviation_one(index: int, path: str) -> dict[str, Any]:
+    from dataset_gen.decomposition import decomposition_report
+
+    obj = _read_once(path).objects[index]
+    mesh = obj.load().mesh
+    report = decomposition_report(mesh, obj.parts, seed=0)
+    return {
+        "object_id": obj.object_id,
+        "faces": len(mesh.faces),
+        "hulls": len(obj.parts),
+        "p95_mm": 1000 * report.deviation_p95,
+        "max_mm": 1000 * report.deviation_max,
+    }
+
+
+def shipped_numbers(benchmark: str, workers: int) -> dict[str, Any]:
+    """The targets measured on a benchmark file alone: objects, fc_pass pairs per object
+    (and those under the admission rule), invalid nominal trials and GSR per arm, and each
+    object's hull-to-mesh deviation recomputed from the mesh and hulls the file carries (the
+    same :func:`~dataset_gen.decomposition.decomposition_report`, seed 0, the build used)."""
+    from dataset_gen.parallel import run_tasks
+    from dg16m_env.benchmark import SOURCES, benchmark_file, read_benchmark
+    from dg16m_env.real_benchmark import MAX_HULL_P95_MM, REAL_LIMITS
+
+    path = benchmark_file(benchmark)
+    bench = read_benchmark(path)
+    names = np.array([SOURCES[int(s)] for s in bench.source])
+    passing = np.bincount(bench.object_index[names == "fc_pass"], minlength=len(bench.objects))
+    valid = bench.trials.valid
+    p = bench.p()
+    arms = {}
+    for name in SOURCES:
+        rows = names == name
+        if rows.any():
+            arms[name] = {
+                "pairs": int(rows.sum()),
+                "objects": len(np.unique(bench.object_index[rows])),
+                "invalid": int((rows & ~valid).sum()),
+                "invalid_share": float((rows & ~valid).sum() / rows.sum()),
+                "gsr": float(p[rows].mean()),
+            }
+    per_object = [
+        value
+        for _, value in run_tasks(
+            _deviation_one, list(range(len(bench.objects))), (str(path),), workers=workers
+        )
+    ]
+    p95 = [v["p95_mm"] for v in per_object]
+    return {
+        "file": str(path),
+        "objects": len(bench.objects),
+        "pairs": bench.n,
+        "fc_pass_per_object": _percentiles([float(v) for v in passing]),
+        "objects_under_min_passing": [
+            o.object_id
+            for o, n in zip(bench.objects, passing, strict=True)
+            if n < REAL_LIMITS.min_passing
+        ],
+        "arms": arms,
+        "faces": _percentiles([float(v["faces"]) for v in per_object]),
+        "hulls": _percentiles([float(v["hulls"]) for v in per_object]),
+        "hull_p95_mm": _percentiles(p95),
+        "hull_max_mm": _percentiles([v["max_mm"] for v in per_object]),
+        "objects_over_max_hull_p95": sorted(
+            v["object_id"] for v in per_object if v["p95_mm"] > MAX_HULL_P95_MM
+        ),
+    }
+
+
 def _screen_one(item: Any, meshes: str) -> dict[str, Any]:
     from dg16m_env.benchmark import screen_passing
     from dg16m_env.real_benchmark import REAL_PARAMETERS
@@ -144,12 +226,19 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--import", dest="imported", type=Path, default=None)
     parser.add_argument("--build", type=Path, default=None)
+    parser.add_argument(
+        "--shipped",
+        default=None,
+        help="a benchmark file or short name ('real'): the targets measured on the file alone",
+    )
     parser.add_argument("--screen", action="store_true", help="screen every imported object")
-    parser.add_argument("--workers", type=int, default=1, help="processes for --screen")
+    parser.add_argument(
+        "--workers", type=int, default=1, help="processes for --screen and --shipped"
+    )
     parser.add_argument("--json", type=Path, default=None, help="also write the numbers here")
     args = parser.parse_args(argv)
-    if args.imported is None and args.build is None:
-        parser.error("expected --import and/or --build, found neither")
+    if args.imported is None and args.build is None and args.shipped is None:
+        parser.error("expected --import, --build and/or --shipped, found none")
     numbers: dict[str, Any] = {}
     if args.imported is not None:
         manifest = json.loads((args.imported / "manifest.json").read_text(encoding="utf-8"))
@@ -158,6 +247,8 @@ def main(argv: list[str] | None = None) -> int:
             numbers["screen"] = screen_numbers(args.imported, args.workers)
     if args.build is not None:
         numbers["build"] = build_numbers(args.build)
+    if args.shipped is not None:
+        numbers["shipped"] = shipped_numbers(args.shipped, args.workers)
     print(json.dumps(numbers, indent=2))
     if args.json is not None:
         write_json_atomic(args.json, numbers)

@@ -56,7 +56,7 @@ def add_benchmark_arguments(parser: argparse.ArgumentParser) -> None:
         type=benchmark_argument,
         default=None,
         help="benchmark file, or a shipped benchmark by name: 'procedural' (the default) or "
-        "'real' (real furniture, once shipped)",
+        "'real' (300 real furniture objects)",
     )
     parser.add_argument(
         "--mesh-root", type=Path, default=None, help="folder of a mesh benchmark's meshes"

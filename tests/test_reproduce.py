@@ -122,6 +122,38 @@ def test_table2_needs_checkpoints(tmp_path: Path) -> None:
         table2(tmp_path / "out", checkpoints=tmp_path, limit=1)
 
 
+def test_training_takes_objects_of_several_folders(generated: Path, tmp_path: Path) -> None:
+    """``--more-data``: the objects of further folders join ``--data``'s (the real training
+    split beside the procedural one); an object in two folders is refused."""
+    import shutil
+
+    from baselines.train_classifier import Args, main
+
+    files = grasp_files(generated)
+    folders = []
+    for keep in files:  # one folder per object, each with its own grasps/ and meshes/
+        folder = tmp_path / keep.stem
+        shutil.copytree(generated, folder)
+        for other in files:
+            if other != keep:
+                (folder / "grasps" / other.name).unlink()
+        folders.append(folder)
+    small = {
+        "steps": 2,
+        "eval_every": 2,
+        "objects_per_batch": 1,
+        "grasps_per_object": 4,
+        "val_grasps": 16,
+        "evaluate": False,
+    }
+    out = tmp_path / "out"
+    main(Args(data=folders[0], more_data=str(folders[1]), out=out, val_fraction=0.5, **small))
+    run = json.loads((out / "cgdf-dg16m-results.json").read_text(encoding="utf-8"))
+    assert run["train_objects"] + run["held_out_objects"] == len(files) == 2
+    with pytest.raises(ClassifierDataError, match="expected distinct objects"):
+        main(Args(data=generated, more_data=str(folders[0]), out=out, **small))
+
+
 def test_training_script_and_table2_tiny(generated: Path, tmp_path: Path) -> None:
     from baselines.train_classifier import Args, main
 
