@@ -101,9 +101,16 @@ def grasp_files(folder: str | os.PathLike[str]) -> list[Path]:
     return files
 
 
-def load_object(path: str | os.PathLike[str], *, n_points: int = DEFAULT_POINTS, seed: int = 0):
+def load_object(
+    path: str | os.PathLike[str],
+    *,
+    n_points: int = DEFAULT_POINTS,
+    seed: int = 0,
+    mesh_root: str | os.PathLike[str] | None = None,
+):
     """One grasp file's :class:`ClassifierObject` (its mesh is found relative to the file's
-    folder's parent, where ``dg16m generate`` writes it).
+    folder's parent, where ``dg16m generate --procedural`` writes it, else in ``mesh_root``:
+    the ``--meshes`` folder of a ``dg16m generate --meshes`` dataset).
 
     Raises:
         ClassifierDataError: the mesh is missing or the file has no contact normals.
@@ -111,11 +118,17 @@ def load_object(path: str | os.PathLike[str], *, n_points: int = DEFAULT_POINTS,
     """
     path = Path(path)
     data = read_dg16m(path)
-    mesh_path = path.parent.parent / data.object_file
-    if not mesh_path.is_file():
+    places = [path.parent.parent / data.object_file]
+    if mesh_root is not None:
+        places.append(Path(mesh_root) / data.object_file)
+    found = [p for p in places if p.is_file()]
+    if not found:
         raise ClassifierDataError(
-            f"{path}: expected its mesh at {mesh_path} (the file's object_file), found nothing"
+            f"{path}: expected its mesh at {' or '.join(str(p) for p in places)} (the file's "
+            "object_file), found nothing (a 'dg16m generate --meshes' dataset: pass its mesh "
+            "folder as mesh_root)"
         )
+    mesh_path = found[0]
     mesh = trimesh.load(mesh_path, force="mesh", process=False)
     vertices = np.asarray(mesh.vertices, dtype=np.float64) * data.object_scale
     faces = np.asarray(mesh.faces, dtype=np.int64)
@@ -143,11 +156,13 @@ def load_generated(
     seed: int = 0,
     limit: int | None = None,
     progress: bool = True,
+    mesh_root: str | os.PathLike[str] | None = None,
 ) -> list[ClassifierObject]:
-    """Every object of a ``dg16m generate`` folder (the first ``limit`` by file name)."""
+    """Every object of a ``dg16m generate`` folder (the first ``limit`` by file name); meshes
+    as :func:`load_object` finds them."""
     files = grasp_files(folder)[:limit]
     return [
-        load_object(f, n_points=n_points, seed=seed)
+        load_object(f, n_points=n_points, seed=seed, mesh_root=mesh_root)
         for f in tqdm(files, desc="objects", unit="obj", disable=not progress)
     ]
 

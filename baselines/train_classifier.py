@@ -60,6 +60,8 @@ class Args:
     more_data: str = ""
     """further 'dg16m generate' folders, comma-separated, whose objects join those of --data
     (the real training split beside the procedural one); --limit applies to each"""
+    mesh_root: str = ""
+    """the --meshes folder of 'dg16m generate --meshes' datasets (procedural ones carry theirs)"""
     out: Path = Path("runs/classifiers")
     """output folder: checkpoint, learning curve, history, results"""
     limit: int = 0
@@ -184,7 +186,11 @@ def main(args: Args | None = None) -> dict[str, Any]:
     # 1. data
     folders = [args.data, *(Path(f) for f in args.more_data.split(",") if f.strip())]
     objects = [
-        o for f in folders for o in load_generated(f, limit=args.limit or None, seed=args.seed)
+        o
+        for f in folders
+        for o in load_generated(
+            f, limit=args.limit or None, seed=args.seed, mesh_root=args.mesh_root or None
+        )
     ]
     ids = [o.object_id for o in objects]
     if len(set(ids)) != len(ids):

@@ -200,6 +200,12 @@ REAL_BENCHMARK = Path(__file__).with_name("data") / "benchmark_real.h5"
 SHIPPED_BENCHMARKS: Mapping[str, Path] = {"procedural": EMBEDDED_BENCHMARK, "real": REAL_BENCHMARK}
 """Benchmarks by short name; ``"procedural"`` is the default everywhere a benchmark is taken."""
 
+SHIPPED_MUJOCO_VERSION = "4.0.0"
+"""The MuJoCo release that simulated the stored trials of both shipped benchmarks (pinned in
+``pyproject.toml``). Another release changes contacts and so some trials: under 4.0.1 a rebuild
+of the first procedural objects flips binary labels (BENCHMARKS.md, "MuJoCo version"). Files
+built since 2026-12-03 record their version in ``metadata["mujoco"]``."""
+
 
 def benchmark_file(benchmark: str | os.PathLike[str] | None = None) -> Path:
     """The file of a benchmark given by short name (:data:`SHIPPED_BENCHMARKS`), by path, or
@@ -1536,13 +1542,18 @@ def benchmark_metadata(
 ) -> dict[str, Any]:
     """The file's metadata; a build on another engine than C MuJoCo names it (engine, device,
     versions) under ``"simulator"`` (files labelled by C MuJoCo, the shipped one included,
-    have no such key)."""
+    have no such key). ``"mujoco"`` is the MuJoCo version that simulated the trials: a MuJoCo
+    release changes contacts, so the stored trials are reproducible with that version only
+    (the shipped files, written before this key, were simulated with 4.0.0)."""
+    import mujoco
+
     out: dict[str, Any] = {
         "parameters": params.to_dict(),
         "phases": list(PHASES),
         "statuses": [s.name.lower() for s in TrialStatus],
         "sources": list(SOURCES),
         "created_by": f"dg16m {package_version()}",
+        "mujoco": mujoco.__version__,
     }
     if simulator is not None and not simulator.is_default:
         out["simulator"] = simulator.describe()

@@ -374,7 +374,8 @@ def benchmark_report(bench: Benchmark, *, n_resamples: int = 2000, seed: int = 0
         :meth:`Benchmark.summary` (at the top level: ``objects``, ``pairs``,
         ``trials_per_pair``, ``perturbation``, ``nominal_trials``, ``by_arm``), plus
         ``created_by`` (the package that built it), ``simulator`` (the engine that ran the
-        trials: ``{"name": "mujoco"}`` unless the file names another), ``p_histogram`` (:func:`p_histogram`,
+        trials: ``{"name": "mujoco"}`` unless the file names another), ``mujoco`` (the MuJoCo
+        version that simulated them, ``None`` for files written before it was recorded), ``p_histogram`` (:func:`p_histogram`,
         full level), ``uncertain`` (:func:`uncertain_overall`), ``failure_phases``
         (:func:`failure_phases`), ``invalid`` (:func:`invalid_trials`), ``penetration``
         (:func:`penetration`, m), ``by_family`` (:func:`summary_by_family`),
@@ -388,6 +389,7 @@ def benchmark_report(bench: Benchmark, *, n_resamples: int = 2000, seed: int = 0
             **summary,
             "created_by": bench.metadata.get("created_by"),
             "simulator": bench.metadata.get("simulator", {"name": "mujoco"}),
+            "mujoco": bench.metadata.get("mujoco"),
             "p_histogram": p_histogram(bench, "full"),
             "uncertain": uncertain_overall(bench),
             "failure_phases": failure_phases(bench),
@@ -442,10 +444,12 @@ def trial_lines(summary: Mapping[str, Any]) -> list[str]:
     return lines
 
 
-def _simulator_line(simulator: Mapping[str, Any]) -> str:
-    """Which engine ran the trials (files without the key: C MuJoCo, the reference)."""
+def _simulator_line(simulator: Mapping[str, Any], mujoco_version: str | None = None) -> str:
+    """Which engine ran the trials (files without the key: C MuJoCo, the reference), with the
+    MuJoCo version where the file records it (files written before 2026-12-03 do not)."""
     if simulator.get("name", "mujoco") == "mujoco":
-        return "trials simulated by C MuJoCo (the reference engine)"
+        version = f" {mujoco_version}" if mujoco_version else ""
+        return f"trials simulated by C MuJoCo{version} (the reference engine)"
     versions = ", ".join(
         f"{k} {simulator[k]}" for k in ("mujoco_warp", "warp", "mujoco") if k in simulator
     )
@@ -468,7 +472,10 @@ def _header_lines(report: Mapping[str, Any], path: str | os.PathLike[str] | None
             "  ",
         ),
         f"built by {report['created_by'] or 'an unknown package'}",
-        *_wrap(_simulator_line(report.get("simulator") or {"name": "mujoco"}), "  "),
+        *_wrap(
+            _simulator_line(report.get("simulator") or {"name": "mujoco"}, report.get("mujoco")),
+            "  ",
+        ),
         "p = fraction of a pair's trials that held, at two levels:",
         *(f"  {level:8s} {LEVEL_DESCRIPTIONS[level]}" for level in LEVELS),
         "arms:",

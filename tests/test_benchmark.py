@@ -18,6 +18,7 @@ from dataset_gen.sources import procedural_sources
 from dg16m_env.benchmark import (
     EMBEDDED_BENCHMARK,
     FLOAT_SIM,
+    SHIPPED_MUJOCO_VERSION,
     SOURCES,
     Benchmark,
     BenchmarkError,
@@ -332,6 +333,25 @@ def assert_rebuilt(rebuilt: Benchmark, shipped: Benchmark, rows: np.ndarray) -> 
             atol=CROSS_MACHINE_ATOL,
             err_msg=name,
         )
+
+
+def test_installed_mujoco_is_the_release_that_simulated_the_shipped_files() -> None:
+    """The shipped files' stored trials reproduce with one MuJoCo release only (4.0.1 flips
+    labels: BENCHMARKS.md); the install pins it, and a new build records its own."""
+    import mujoco
+
+    pyproject = (Path(__file__).resolve().parents[1] / "pyproject.toml").read_text()
+    assert f'"mujoco=={SHIPPED_MUJOCO_VERSION}"' in pyproject, "the sim extra pins that release"
+    assert mujoco.__version__ == SHIPPED_MUJOCO_VERSION, (
+        f"expected MuJoCo {SHIPPED_MUJOCO_VERSION} (the shipped benchmarks were simulated with "
+        f"it; reinstall with `make setup`), found {mujoco.__version__}"
+    )
+
+
+def test_a_build_records_its_mujoco_version(built: Path) -> None:
+    import mujoco
+
+    assert read_benchmark(built / "benchmark.h5").metadata["mujoco"] == mujoco.__version__
 
 
 @pytest.mark.skipif(not EMBEDDED_BENCHMARK.is_file(), reason="no shipped benchmark file")

@@ -122,6 +122,24 @@ def test_table2_needs_checkpoints(tmp_path: Path) -> None:
         table2(tmp_path / "out", checkpoints=tmp_path, limit=1)
 
 
+def test_meshes_of_a_dataset_made_from_a_mesh_folder(generated: Path, tmp_path: Path) -> None:
+    """A ``generate --meshes`` dataset names meshes relative to its ``--meshes`` folder: without
+    ``mesh_root`` the loader says where it looked and what to pass; with it, the same objects."""
+    import shutil
+
+    data = tmp_path / "data"
+    shutil.copytree(generated, data)
+    meshes = tmp_path / "meshes"
+    shutil.move(data / "meshes", meshes)
+    for path in grasp_files(data):  # object_file "meshes/<id>.obj" now lives under tmp_path
+        assert (tmp_path / read_dg16m(path).object_file).is_file()
+    with pytest.raises(ClassifierDataError, match="pass its mesh folder as mesh_root"):
+        load_generated(data, n_points=64, progress=False)
+    moved = load_generated(data, n_points=64, progress=False, mesh_root=tmp_path)
+    original = load_generated(generated, n_points=64, progress=False)
+    assert all(np.array_equal(a.points, b.points) for a, b in zip(moved, original, strict=True))
+
+
 def test_training_takes_objects_of_several_folders(generated: Path, tmp_path: Path) -> None:
     """``--more-data``: the objects of further folders join ``--data``'s (the real training
     split beside the procedural one); an object in two folders is refused."""
