@@ -147,8 +147,8 @@ def register(subparsers: Any) -> None:
         "--save-submission",
         type=Path,
         default=None,
-        help="predictor: where to write the submission file it produces (default "
-        "runs/predictor_submission.h5)",
+        help="predictor: where to write the submission file it produces (default: beside "
+        "--out, OUT's name with .submission.h5; without --out runs/predictor_submission.h5)",
     )
     _predictor_options(ev)
     add_simulator_arguments(ev)
@@ -296,13 +296,22 @@ def _predictor_spec(args: argparse.Namespace) -> Any:
     )
 
 
+def predictor_submission_path(results: Path | None) -> Path:
+    """Where ``evaluate --predictor`` writes the submission it produces unless told: beside the
+    results file (``a/b.json`` -> ``a/b.submission.h5``), so two evaluations with different
+    ``--out`` never write the same file; without ``--out``, ``runs/predictor_submission.h5``."""
+    if results is None:
+        return Path("runs") / "predictor_submission.h5"
+    return results.with_name(f"{results.stem}.submission.h5")
+
+
 def _submission_subject(args: argparse.Namespace, ref: Any, kind: str, progress: bool) -> Path:
     """The submission file to score: the given one, or the one the predictor produced."""
     if kind == "submission":
         return args.submission
     from dg16m_env.predictor import submission_from_predictor
 
-    out = args.save_submission or Path("runs") / "predictor_submission.h5"
+    out = args.save_submission or predictor_submission_path(args.out)
     path, run = submission_from_predictor(
         _predictor_spec(args),
         out,

@@ -133,6 +133,23 @@ def test_evaluate_a_predictor_counts_its_failures_as_zero(small, tmp_path, capsy
     assert sub.poses["table-1000000"].shape == (2, 2, 4, 4)
 
 
+def test_a_predictors_submission_goes_beside_its_results(small, tmp_path, capsys):
+    """Without --save-submission the produced file is named after --out, so two evaluations
+    with different --out (e.g. run side by side) never write the same submission file."""
+    module = tmp_path / "my_predictor.py"
+    module.write_text(PREDICTOR)
+    out = tmp_path / "res" / "mine.json"
+    out.parent.mkdir()
+    argv = ["evaluate", "--predictor", f"{module}:predict", "--benchmark", str(small)]
+    argv += ["--evaluators", "fce", "--out", str(out), "--time-limit", "20", "--no-progress"]
+    assert main(argv) == 0
+    kept = tmp_path / "res" / "mine.submission.h5"
+    assert f"wrote {kept}" in capsys.readouterr().out
+    sub = read_submission(kept, object_ids=OBJECTS, benchmark_sha256=file_sha256(small))
+    assert sub.poses["table-1000000"].shape == (2, 2, 4, 4)
+    assert read_results(out)["fce"].score == 0.0
+
+
 def test_evaluate_a_classifier_from_a_file(small, tmp_path, capsys):
     module = tmp_path / "my_classifier.py"
     module.write_text(CLASSIFIER)
