@@ -40,7 +40,9 @@ Results do not depend on the number of workers or the backend.
 File schema (``format = "dg16m-benchmark"``, ``schema_version = 2``)
 ----------------------------------------------------------------------
 Root attributes: ``format``, ``schema_version``, ``metadata`` (JSON: parameters, with scene,
-protocol and perturbation; phases, status names, sources, package version; ``reseat``, only when
+protocol and perturbation; phases, status names, sources, package version; ``mujoco``, the
+MuJoCo version that simulated the trials, in files written since 2026-12-03; ``simulator``, only
+for another engine than C MuJoCo; ``reseat``, only when
 some object was re-seated: per such object :meth:`dg16m_env.reseat.Reseat.summary`, i.e. the
 limit, hands, hands penetrating before, hands not cleared, hands moved with the median and
 largest shift).

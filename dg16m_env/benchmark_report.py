@@ -375,10 +375,11 @@ def benchmark_report(bench: Benchmark, *, n_resamples: int = 2000, seed: int = 0
         ``trials_per_pair``, ``perturbation``, ``nominal_trials``, ``by_arm``), plus
         ``created_by`` (the package that built it), ``simulator`` (the engine that ran the
         trials: ``{"name": "mujoco"}`` unless the file names another), ``mujoco`` (the MuJoCo
-        version that simulated them, ``None`` for files written before it was recorded), ``p_histogram`` (:func:`p_histogram`,
-        full level), ``uncertain`` (:func:`uncertain_overall`), ``failure_phases``
-        (:func:`failure_phases`), ``invalid`` (:func:`invalid_trials`), ``penetration``
-        (:func:`penetration`, m), ``by_family`` (:func:`summary_by_family`),
+        version that simulated them, ``None`` for files written before it was recorded),
+        ``p_histogram`` (:func:`p_histogram`, full level), ``uncertain``
+        (:func:`uncertain_overall`), ``failure_phases`` (:func:`failure_phases`), ``invalid``
+        (:func:`invalid_trials`), ``penetration`` (:func:`penetration`, m), ``by_family``
+        (:func:`summary_by_family`),
         ``invalid_by_object`` (:func:`invalid_by_object`), ``reseat`` (:func:`reseat_report`),
         ``hand_line`` (:func:`hand_line`, ``None`` for older files) and
         ``contacts_after_close`` (:func:`contacts_after_close`).
