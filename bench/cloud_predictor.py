@@ -1,7 +1,8 @@
 """Time of the cloud sample-and-rank predictors for one object on one CPU core, against a
 reference measured in the same run.
 
-For ``--objects`` objects of the embedded procedural benchmark (the first ones, one per family),
+For the first ``--objects`` objects of a benchmark (the embedded procedural one by default, the
+first ones one per family; ``--benchmark real`` the shipped real furniture),
 the predictor call ``observation -> 10 dual grasps`` of :mod:`baselines.cloud_predictor` is
 timed ``--repeats`` times after a warm-up (the classifier loaded, torch imported): per object the
 minimum, then the median and maximum over the objects, per predictor (full and partial cloud,
@@ -13,6 +14,7 @@ shared and noisy; ratios travel better than seconds). Target: under 2 s per obje
 
     nice -n 19 .venv/bin/python bench/cloud_predictor.py                  # ~1 min
     .venv/bin/python bench/cloud_predictor.py --objects 3 --repeats 1 --out runs/cloud_bench.json
+    .venv/bin/python bench/cloud_predictor.py --benchmark real --out runs/cloud_bench_real.json
 """
 
 from __future__ import annotations
@@ -63,6 +65,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--objects", type=int, default=10, help="benchmark objects (first N)")
     parser.add_argument("--repeats", type=int, default=2, help="timed calls per object")
     parser.add_argument("--out", type=Path, default=None, help="optional JSON results file")
+    parser.add_argument(
+        "--benchmark",
+        default=None,
+        help="benchmark file or shipped name ('procedural', the default, or 'real')",
+    )
     args = parser.parse_args(argv)
     for name in ("objects", "repeats"):
         if getattr(args, name) < 1:
@@ -108,11 +115,15 @@ def stages(observation: dict[str, Any]) -> dict[str, float]:
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     args = parse_args(argv)
-    ref = load_benchmark_ref(None)
+    ref = load_benchmark_ref(args.benchmark)
     objects = ref.benchmark.objects[: args.objects]
     observations = [object_observation(o.load(None)) for o in objects]
     reference = reference_s()
-    results: dict[str, Any] = {"reference_s": reference, "objects": len(observations)}
+    results: dict[str, Any] = {
+        "reference_s": reference,
+        "benchmark": args.benchmark or "procedural",
+        "objects": len(observations),
+    }
     print(f"reference (20 x 1024^2 float32 matmul): {reference:.3f} s")
     for name, predictor in PREDICTORS.items():
         for obs in observations:  # warm-up: torch import, checkpoint load
