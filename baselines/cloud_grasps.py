@@ -614,6 +614,13 @@ class DepthViews:
         """(Q,) bool: each of ``points`` (Q, 3) (m) lies in a camera's image at least ``margin``
         (m) in front of the surface its pixel saw (or where it saw nothing). A point no camera
         sees, or that every camera sees behind a surface, is not known to be free."""
+        return self.occlusion_depth(points) < -margin
+
+    def occlusion_depth(self, points: np.ndarray) -> np.ndarray:
+        """(Q,) float64: for each of ``points`` (Q, 3) (m), the least over the cameras whose
+        image holds it of (its distance from the camera - the distance its pixel saw): negative
+        in front of the seen surface, positive behind it; ``-inf`` where a pixel saw nothing (seen
+        empty), ``+inf`` where no image holds the point."""
         points = np.asarray(points, dtype=np.float64)
         rel = points[None, :, :] - self.origins[:, None, :]  # (C, Q, 3)
         cam = np.einsum("cij,cqj->cqi", self.axes, rel)
@@ -627,8 +634,9 @@ class DepthViews:
         row = np.clip(np.floor((1.0 - np.where(in_view, v, 0.0)) * r / 2.0), 0, r - 1)
         camera = np.broadcast_to(np.arange(len(self.origins))[:, None], col.shape)
         seen = self.distance[camera, row.astype(np.int64), col.astype(np.int64)]
-        free = in_view & (np.linalg.norm(rel, axis=-1) < seen - margin)
-        return free.any(axis=0)
+        with np.errstate(invalid="ignore"):
+            depth = np.where(in_view, np.linalg.norm(rel, axis=-1) - seen, np.inf)
+        return depth.min(axis=0)
 
 
 def hand_volume_points(model: GripperModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

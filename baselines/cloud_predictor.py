@@ -103,6 +103,13 @@ FC_BONUS = 1.0e3
 """Added to the score of a candidate that passes the cloud force-closure check (ranker scores:
 logits of a few tens at most, or uniform in [0, 1))."""
 
+SAFE_BONUS = 2.0e3
+"""Added to the score of a candidate whose start risk is at most ``max_start_risk`` (above
+:data:`FC_BONUS`: the collision check orders first, then the force-closure check)."""
+
+HAND_COLLISION_CHECKPOINT = CHECKPOINTS / "hand-collision.pt"
+"""The shipped hand-collision check (:mod:`baselines.train_hand_collision`)."""
+
 _SCORE_CHUNK = 1024  # candidates per classifier call
 
 
@@ -291,6 +298,11 @@ class CloudPredictor:
             (:func:`~baselines.cloud_grasps.hands_in_seen_free_space`); space behind what they
             saw may hold the part they did not see.
         sampler: the candidate sampler's parameters.
+        collision: with ``view="partial"``, a hand-collision checkpoint
+            (:mod:`baselines.hand_collision`; ``"shipped"``: :data:`HAND_COLLISION_CHECKPOINT`):
+            candidates whose risk of an open hand starting in the object (``1 - (1 - p0)(1 -
+            p1)``) exceeds ``max_start_risk`` are ranked after all others. ``None``: no check.
+        max_start_risk: the largest risk of a candidate ranked first (in [0, 1]).
     """
 
     ranker: Ranker = "cgdf"
@@ -305,6 +317,8 @@ class CloudPredictor:
     force_closure: bool = True
     free_space: bool = False
     sampler: CloudSamplerConfig = field(default_factory=CloudSamplerConfig)
+    collision: str | None = None
+    max_start_risk: float = 0.8
 
     def __post_init__(self) -> None:
         if self.ranker not in RANKERS:
@@ -320,6 +334,17 @@ class CloudPredictor:
             ("threads", 1),
         ):
             check_integer(name, getattr(self, name), minimum=minimum, error=CloudError)
+        if not (
+            isinstance(self.max_start_risk, (int, float)) and 0.0 <= self.max_start_risk <= 1.0
+        ):
+            raise CloudError(
+                f"max_start_risk: expected a number in [0, 1], found {self.max_start_risk!r}"
+            )
+        if self.collision is not None and self.view != "partial":
+            raise CloudError(
+                f"collision: expected None with view={self.view!r} (the check needs the depth "
+                f"views of view='partial'), found {self.collision!r}"
+            )
         if not isinstance(self.sampler, CloudSamplerConfig):
             raise CloudError(
                 f"sampler: expected a CloudSamplerConfig, found {type(self.sampler).__name__}"
@@ -361,10 +386,24 @@ class CloudPredictor:
         """The checked cloud of the configured view."""
         return self.observe(observation, rng)[0]
 
+    def collision_path(self) -> str | None:
+        """The hand-collision checkpoint the predictor uses (``None``: no check)."""
+        if self.collision == "shipped":
+            return str(HAND_COLLISION_CHECKPOINT)
+        return None if self.collision is None else str(self.collision)
+
     def candidates(
         self, observation: dict[str, Any]
     ) -> tuple[Cloud, DualCandidates, np.random.Generator]:
         """The cloud, its dual candidates and the object's stream after sampling."""
+        cloud, cands, rng, _ = self.observed_candidates(observation)
+        return cloud, cands, rng
+
+    def observed_candidates(
+        self, observation: dict[str, Any]
+    ) -> tuple[Cloud, DualCandidates, np.random.Generator, DepthViews | None]:
+        """:meth:`candidates` and the depth views of a partial view (``None`` for the full
+        cloud)."""
         object_id = observation.get("object_id") if isinstance(observation, dict) else None
         if not isinstance(object_id, str) or not object_id:
             raise CloudError(
@@ -372,13 +411,25 @@ class CloudPredictor:
             )
         rng = np.random.default_rng(object_seed(self.seed, SEED_PREFIX + object_id))
         cloud, views = self.observe(observation, rng)
-        views = views if self.free_space else None
-        cands = cloud_dual_candidates(cloud, self.sampler, rng=rng, views=views)
+        free = views if self.free_space else None
+        cands = cloud_dual_candidates(cloud, self.sampler, rng=rng, views=free)
         if cands.n == 0 and self.sampler.clearance_factor > 0.0:  # thin walls: no clearance
             relaxed = dataclasses.replace(self.sampler, clearance_factor=0.0)
-            cands = cloud_dual_candidates(cloud, relaxed, rng=rng, views=views)
+            cands = cloud_dual_candidates(cloud, relaxed, rng=rng, views=free)
             cands.counts["clearance_relaxed"] = 1
-        return cloud, cands, rng
+        return cloud, cands, rng, views
+
+    def start_risk(self, cloud: Cloud, views: DepthViews, candidates: DualCandidates) -> np.ndarray:
+        """(N,) probability that an open hand of each candidate starts in the object
+        (:mod:`baselines.hand_collision`, the checkpoint of :meth:`collision_path`)."""
+        from baselines.hand_collision import hand_features, load_hand_collision
+
+        path = self.collision_path()
+        if path is None or candidates.n == 0:
+            return np.zeros(candidates.n)
+        model = load_hand_collision(path)
+        p = model.probability(hand_features(cloud, views, candidates.poses))
+        return 1.0 - (1.0 - p[:, 0]) * (1.0 - p[:, 1])
 
     def rank(
         self, cloud: Cloud, candidates: DualCandidates, rng: np.random.Generator
@@ -396,7 +447,7 @@ class CloudPredictor:
         Raises:
             CloudError: a malformed observation or cloud, or no candidate at all.
         """
-        cloud, cands, rng = self.candidates(observation)
+        cloud, cands, rng, views = self.observed_candidates(observation)
         if cands.n == 0:
             raise CloudError(
                 f"{observation['object_id']}: expected at least one dual candidate on the "
@@ -405,6 +456,10 @@ class CloudPredictor:
         scores = self.rank(cloud, cands, rng)
         if self.force_closure:
             scores = scores + FC_BONUS * cloud_force_closure(cands)
+        if views is not None and self.collision is not None:
+            scores = scores + SAFE_BONUS * (
+                self.start_risk(cloud, views, cands) <= self.max_start_risk
+            )
         top = np.argsort(-scores, kind="stable")[: self.k]
         return cands.poses[top].astype(np.float64), np.asarray(scores[top], dtype=np.float64)
 

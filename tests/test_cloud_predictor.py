@@ -144,6 +144,11 @@ def test_depth_views_tell_space_seen_empty_from_space_behind_a_surface():
     assert np.isfinite(views.distance).sum() == len(points) == len(normals)
     above, under, away = [0.0, 0.0, 0.06], [0.0, 0.0, -0.03], [10.0, 10.0, 10.0]
     assert views.seen_free(np.array([above, under, away]), 0.005).tolist() == [True, False, False]
+    depth = views.occlusion_depth(np.array([above, under, away]))
+    # 5 cm in front of the board's top (the ray is slanted: longer), 4 cm behind it, no image
+    assert depth[0] < -0.05
+    assert 0.04 <= depth[1] < 0.2
+    assert depth[2] == np.inf
     down = np.eye(4)
     down[:3, :3] = [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]  # y (approach) = -z
     high, low = down.copy(), down.copy()
