@@ -17,7 +17,6 @@ features on 2 cores and 1 minute per epoch; the held-out loss is lowest after th
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import multiprocessing
 import time
@@ -29,6 +28,7 @@ import numpy as np
 from baselines.cloud_grasps import cloud_dual_candidates
 from baselines.cloud_predictor import SEED_PREFIX, cgdf_partial_predictor
 from baselines.hand_collision import DEPTH_SCALE, GRID, hand_features, make_net, n_features
+from baselines.sb3_common import parse_args
 from dataset_gen.atomic import atomic_path
 from dataset_gen.procedural import FAMILIES, N_BENCHMARK_FAMILIES, make_procedural_object
 from dataset_gen.sources import object_seed
@@ -191,14 +191,5 @@ def main(args: Args) -> None:
     print(f"wrote {args.out} (held-out AUC {val_auc:.4f})")
 
 
-def parse_args(argv: list[str] | None = None) -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    for f in dataclasses.fields(Args):
-        parser.add_argument(
-            f"--{f.name.replace('_', '-')}", type=type(f.default), default=f.default
-        )
-    return Args(**vars(parser.parse_args(argv)))
-
-
 if __name__ == "__main__":
-    main(parse_args())
+    main(parse_args(Args, __doc__.split("\n\n")[0]))
