@@ -25,7 +25,10 @@ A :class:`CloudPredictor` is a predictor ``observation -> (poses (K, 2, 4, 4), s
 4. returns the ``k`` best with their scores: the candidates that pass the cloud check first,
    each group by descending ranker score (ties in candidate order). A returned score is the
    ranker's score plus :data:`FC_BONUS` for a passing candidate, so the scores order the grasps
-   as they were ranked.
+   as they were ranked. With ``collision`` (a partial view; off by default, it measured no
+   better, ``baselines/RESULTS.md``) a learned check (:mod:`baselines.hand_collision`) first
+   ranks the candidates whose open hands likely start in unseen parts after all others
+   (:data:`SAFE_BONUS`).
 
 No step reads the mesh except :func:`camera_views` (and :func:`camera_cloud`, which keeps
 ``n_points`` of its hits), which stands in for a depth camera: it ray
@@ -335,7 +338,9 @@ class CloudPredictor:
         ):
             check_integer(name, getattr(self, name), minimum=minimum, error=CloudError)
         if not (
-            isinstance(self.max_start_risk, (int, float)) and 0.0 <= self.max_start_risk <= 1.0
+            isinstance(self.max_start_risk, (int, float))
+            and not isinstance(self.max_start_risk, bool)
+            and 0.0 <= self.max_start_risk <= 1.0
         ):
             raise CloudError(
                 f"max_start_risk: expected a number in [0, 1], found {self.max_start_risk!r}"
@@ -492,9 +497,11 @@ __all__ = [
     "CHECKPOINTS",
     "FC_BONUS",
     "FOVY_DEG",
+    "HAND_COLLISION_CHECKPOINT",
     "PAPER_FORCE_CLOSURE",
     "PARTIAL_SAMPLER",
     "RANKERS",
+    "SAFE_BONUS",
     "SEED_PREFIX",
     "VIEWS",
     "CloudPredictor",
