@@ -26,6 +26,7 @@ for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUM
     os.environ.setdefault(_name, "1")
 
 import argparse
+import dataclasses
 import statistics
 import time
 from collections.abc import Callable
@@ -57,6 +58,7 @@ PREDICTORS: dict[str, CloudPredictor] = {
     "random_full": random_predictor,
     "cgdf_partial": cgdf_partial_predictor,
     "random_partial": random_partial_predictor,
+    "cgdf_partial_checked": dataclasses.replace(cgdf_partial_predictor, collision="shipped"),
 }
 
 
