@@ -654,6 +654,13 @@ def hand_volume_points(model: GripperModel) -> tuple[np.ndarray, np.ndarray, np.
     return grid(palm, (6, 4, 4)), grid(finger0, (3, 5, 3)), grid(finger1, (3, 5, 3))
 
 
+def hand_volume_in_object(poses: np.ndarray, model: GripperModel) -> np.ndarray:
+    """(N, Q, 3) the points of :func:`hand_volume_points` (palm, finger 0, finger 1 in that
+    order) of each open hand at ``poses`` (N, 4, 4), in the object frame (m)."""
+    local = np.concatenate(hand_volume_points(model))
+    return np.einsum("nij,qj->nqi", poses[:, :3, :3], local) + poses[:, None, :3, 3]
+
+
 def hands_in_seen_free_space(
     views: DepthViews,
     poses: np.ndarray,
@@ -672,10 +679,9 @@ def hands_in_seen_free_space(
     if n == 0:
         return np.zeros(0, dtype=bool)
     palm, finger0, finger1 = hand_volume_points(model)
-    local = np.concatenate([palm, finger0, finger1])
     part = np.repeat([0, 1, 2], [len(palm), len(finger0), len(finger1)])
-    world = np.einsum("nij,qj->nqi", poses[:, :3, :3], local) + poses[:, None, :3, 3]
-    free = views.seen_free(world.reshape(-1, 3), margin).reshape(n, len(local))
+    world = hand_volume_in_object(poses, model)
+    free = views.seen_free(world.reshape(-1, 3), margin).reshape(n, len(part))
     if skip_finger is not None:
         skip = np.asarray(skip_finger, dtype=bool)
         free |= (part[None, :] == 1) & skip[:, :1]
@@ -982,6 +988,7 @@ __all__ = [
     "hand_hits_cloud",
     "hand_poses",
     "hand_reach",
+    "hand_volume_in_object",
     "hand_volume_points",
     "hands_in_seen_free_space",
     "sample_cloud_grasps",

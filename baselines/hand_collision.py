@@ -33,7 +33,13 @@ from typing import Any
 
 import numpy as np
 
-from baselines.cloud_grasps import Cloud, CloudError, DepthViews, hand_volume_points
+from baselines.cloud_grasps import (
+    Cloud,
+    CloudError,
+    DepthViews,
+    hand_volume_in_object,
+    hand_volume_points,
+)
 from dataset_gen.gripper import GripperModel, get_gripper
 
 DEPTH_SCALE = 0.05
@@ -52,11 +58,7 @@ HIDDEN = (256, 128)
 def hand_grid_bounds(model: GripperModel) -> np.ndarray:
     """(2, 3) lower and upper corner (grasp frame, m) of the occupancy grid: the open hand's
     collision boxes' bounding box grown by :data:`GRID_MARGIN`."""
-    corners = []
-    for box in model.collision_boxes(None):
-        centre, half = np.asarray(box.center), np.asarray(box.half_extents)
-        corners += [centre - half, centre + half]
-    corners = np.asarray(corners)
+    corners = np.concatenate([box.corners for box in model.collision_boxes(None)])
     return np.stack([corners.min(axis=0) - GRID_MARGIN, corners.max(axis=0) + GRID_MARGIN])
 
 
@@ -83,9 +85,8 @@ def hand_features(
         raise CloudError(f"poses: expected shape (N, 2, 4, 4), found {poses.shape}")
     n = len(poses)
     hands = poses.reshape(-1, 4, 4)
-    volume = np.concatenate(hand_volume_points(model))
-    world = np.einsum("nij,qj->nqi", hands[:, :3, :3], volume) + hands[:, None, :3, 3]
-    depth = views.occlusion_depth(world.reshape(-1, 3)).reshape(len(hands), len(volume))
+    world = hand_volume_in_object(hands, model)
+    depth = views.occlusion_depth(world.reshape(-1, 3)).reshape(world.shape[:2])
     visibility = np.clip(depth, -DEPTH_SCALE, DEPTH_SCALE) / DEPTH_SCALE
     occupancy = np.zeros((len(hands), GRID**3), dtype=np.float32)
     if len(hands):

@@ -27,6 +27,7 @@ import numpy as np
 
 from baselines.cloud_grasps import cloud_dual_candidates
 from baselines.cloud_predictor import SEED_PREFIX, cgdf_partial_predictor
+from baselines.da2_labels import roc_auc
 from baselines.hand_collision import DEPTH_SCALE, GRID, hand_features, make_net, n_features
 from baselines.sb3_common import parse_args
 from dataset_gen.atomic import atomic_path
@@ -106,17 +107,6 @@ def save_hands(path: Path, specs: list[tuple[str, int, int]], hands: list) -> No
         )
 
 
-def auc(score: np.ndarray, label: np.ndarray) -> float:
-    """Area under the ROC curve (rank statistic; ties averaged)."""
-    from scipy.stats import rankdata
-
-    pos, neg = int(label.sum()), int((~label).sum())
-    if pos == 0 or neg == 0:
-        return float("nan")
-    ranks = rankdata(score)
-    return float((ranks[label].sum() - pos * (pos + 1) / 2) / (pos * neg))
-
-
 def main(args: Args) -> None:
     import torch
     from tqdm import tqdm
@@ -153,7 +143,7 @@ def main(args: Args) -> None:
     optimiser = torch.optim.AdamW(net.parameters(), lr=args.lr, weight_decay=args.weight_decay)
     loss_fn = torch.nn.BCEWithLogitsLoss(pos_weight=torch.tensor((1 - positive) / positive))
     generator = torch.Generator().manual_seed(args.seed)
-    best: tuple[float, int, dict, float] | None = None
+    best: tuple[float, int, dict, float | None] | None = None
     for epoch in range(args.epochs):
         net.train()
         order = torch.randperm(len(y_train), generator=generator)
@@ -165,14 +155,14 @@ def main(args: Args) -> None:
         with torch.no_grad():
             logits = net(x_val)
             val_loss = float(loss_fn(logits, y_val))
-        val_auc = auc(logits.numpy(), y_val.numpy() > 0.5)
-        print(f"epoch {epoch + 1}: held-out loss {val_loss:.4f}, AUC {val_auc:.4f}")
+        val_auc = roc_auc(logits.numpy(), y_val.numpy() > 0.5)
+        print(f"epoch {epoch + 1}: held-out loss {val_loss:.4f}, AUC {_auc_text(val_auc)}")
         if best is None or val_loss < best[0]:
             state = {k: v.detach().clone() for k, v in net.state_dict().items()}
             best = (val_loss, epoch + 1, state, val_auc)
     assert best is not None  # epochs >= 1
     val_loss, best_epoch, state, val_auc = best
-    print(f"kept epoch {best_epoch} (held-out loss {val_loss:.4f}, AUC {val_auc:.4f})")
+    print(f"kept epoch {best_epoch} (held-out loss {val_loss:.4f}, AUC {_auc_text(val_auc)})")
 
     metadata = {
         "kind": "hand-collision",
@@ -188,7 +178,12 @@ def main(args: Args) -> None:
     }
     with atomic_path(Path(args.out)) as tmp:
         torch.save({"state_dict": state, "metadata": metadata}, tmp)
-    print(f"wrote {args.out} (held-out AUC {val_auc:.4f})")
+    print(f"wrote {args.out} (held-out AUC {_auc_text(val_auc)})")
+
+
+def _auc_text(value: float | None) -> str:
+    """An AUC for printing (``n/a`` when the held-out hands hold one class only)."""
+    return "n/a" if value is None else f"{value:.4f}"
 
 
 if __name__ == "__main__":

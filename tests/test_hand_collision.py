@@ -17,6 +17,7 @@ from baselines.cloud_predictor import (
     cgdf_partial_predictor,
     random_partial_predictor,
 )
+from baselines.da2_labels import roc_auc
 from baselines.hand_collision import (
     DEPTH_SCALE,
     GRID,
@@ -24,7 +25,7 @@ from baselines.hand_collision import (
     load_hand_collision,
     n_features,
 )
-from baselines.train_hand_collision import Args, auc, main, object_hands
+from baselines.train_hand_collision import Args, main, object_hands
 from dataset_gen.parameters import PROTOCOL
 from dataset_gen.procedural import make_procedural_object
 from dg16m_env.observation import object_observation
@@ -73,7 +74,7 @@ def test_the_shipped_check_tells_hands_that_start_inside_on_a_held_out_object(ta
     p = model.probability(hand_features(cloud, views, cands.poses))
     assert p.shape == inside.shape
     assert np.all((p >= 0) & (p <= 1))
-    assert auc(p.ravel(), inside.ravel()) > 0.85
+    assert roc_auc(p.ravel(), inside.ravel()) > 0.85
     assert model.metadata["kind"] == "hand-collision"
     assert not any(str(o).startswith("table-10") for o in model.metadata["objects"])
 
