@@ -167,7 +167,8 @@ def load_hand_collision(path: str) -> HandCollisionModel:
         raise CloudError(f"{path}: expected a hand-collision checkpoint, found {first}") from None
     meta = data.get("metadata") if isinstance(data, dict) else None
     if not isinstance(meta, dict) or meta.get("kind") != "hand-collision":
-        raise CloudError(f"{path}: expected a hand-collision checkpoint, found other contents")
+        what = f"kind {meta.get('kind')!r}" if isinstance(meta, dict) else "no metadata"
+        raise CloudError(f"{path}: expected a hand-collision checkpoint, found {what}")
     expected = {"n_features": n_features(), "grid": GRID, "depth_scale": DEPTH_SCALE}
     found = {k: meta.get(k) for k in expected}
     if found != expected:
