@@ -13,7 +13,13 @@ A :class:`CloudPredictor` is a predictor ``observation -> (poses (K, 2, 4, 4), s
    can be held with its underside unseen); when none is found (thin walls, e.g. crates), once
    more with the hand's clearance set to 0. With ``free_space=True`` (not the default: it
    measured worse, ``baselines/RESULTS.md``) a partial view also keeps only hands that lie in
-   space the cameras saw empty;
+   space the cameras saw empty. With ``completion`` (a partial view; the ``*_completed``
+   predictors) the cloud is first completed with the best-fitting shape of a library of
+   training objects (:func:`baselines.shape_completion.complete_cloud`: the points no camera
+   could see of a procedural training object fitted to the cloud), candidates are sampled on the
+   completed cloud and checked against it, and each hand keeps at least one contact on a point
+   the cameras saw (:func:`hands_with_seen_contacts`); step 4 then ranks candidates whose hands
+   come within ``guessed_clearance`` of a guessed point after all others;
 3. checks each candidate for force closure on the cloud's own contacts and normals
    (``force_closure=True``, the default: :func:`dataset_gen.pairing.score_pairs` with the
    paper's parameters, the check the dataset's labels come from) and ranks them:
@@ -63,6 +69,7 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 import trimesh
+from scipy.spatial import cKDTree
 
 from baselines.cloud_grasps import (
     Cloud,
@@ -72,8 +79,17 @@ from baselines.cloud_grasps import (
     DualCandidates,
     check_cloud,
     cloud_dual_candidates,
+    hand_volume_in_object,
+)
+from baselines.shape_completion import (
+    Completion,
+    CompletionConfig,
+    ShapeLibrary,
+    complete_cloud,
+    procedural_library,
 )
 from dataset_gen.checks import check_integer
+from dataset_gen.gripper import get_gripper
 from dataset_gen.pairing import score_pairs
 from dataset_gen.parameters import PAPER
 from dataset_gen.sources import object_seed
@@ -109,6 +125,10 @@ logits of a few tens at most, or uniform in [0, 1))."""
 SAFE_BONUS = 2.0e3
 """Added to the score of a candidate whose start risk is at most ``max_start_risk`` (above
 :data:`FC_BONUS`: the collision check orders first, then the force-closure check)."""
+
+CLEAR_BONUS = 2.0e3
+"""Added to the score of a candidate whose hands keep clear of a completion's guessed points
+(above :data:`FC_BONUS`: the clearance orders first, then the force-closure check)."""
 
 HAND_COLLISION_CHECKPOINT = CHECKPOINTS / "hand-collision.pt"
 """The shipped hand-collision check (:mod:`baselines.train_hand_collision`)."""
@@ -277,6 +297,32 @@ def cloud_force_closure(candidates: DualCandidates) -> np.ndarray:
     return np.asarray(verdict.passed, dtype=bool)
 
 
+def hands_with_seen_contacts(candidates: DualCandidates, n_observed: int) -> DualCandidates:
+    """The candidates whose two hands each hold at least one contact on a seen point (cloud
+    index below ``n_observed``: :attr:`~baselines.shape_completion.Completion.n_observed`); all of
+    them when none does. ``counts["seen_contacts"]`` says how many passed."""
+    if candidates.n == 0:
+        return candidates
+    seen = np.asarray(candidates.grasps.face_ids) < n_observed  # (M, 2)
+    keep = seen[candidates.pairs[:, 0]].any(axis=1) & seen[candidates.pairs[:, 1]].any(axis=1)
+    counts = dict(candidates.counts, seen_contacts=int(keep.sum()))
+    if not keep.any():
+        return dataclasses.replace(candidates, counts=counts)
+    return DualCandidates(
+        candidates.grasps,
+        candidates.pairs[keep],
+        candidates.poses[keep],
+        candidates.contact_points[keep],
+        candidates.contact_normals[keep],
+        counts,
+    )
+
+
+@functools.lru_cache(maxsize=4)
+def _load_library(path: str) -> ShapeLibrary:
+    return ShapeLibrary.load(path)
+
+
 # --------------------------------------------------------------------------------------------
 # The predictor
 # --------------------------------------------------------------------------------------------
@@ -306,6 +352,18 @@ class CloudPredictor:
             candidates whose risk of an open hand starting in the object (``1 - (1 - p0)(1 -
             p1)``) exceeds ``max_start_risk`` are ranked after all others. ``None``: no check.
         max_start_risk: the largest risk of a candidate ranked first (in [0, 1]).
+        completion: with ``view="partial"``, complete the cloud with the best-fitting shape of
+            a library of training objects (:mod:`baselines.shape_completion`): ``"procedural"``
+            (:func:`~baselines.shape_completion.procedural_library`) or the path of a saved
+            :class:`~baselines.shape_completion.ShapeLibrary`. Candidates are sampled on, checked
+            against and ranked with the completed cloud, and each hand must hold at least one
+            contact the cameras saw (a hand on guessed points alone is a guess twice); when no
+            candidate does, all are kept. ``None``: the cloud as seen.
+        completion_config: the completion's parameters.
+        guessed_clearance: with ``completion``, candidates whose open hands
+            (:func:`~baselines.cloud_grasps.hand_volume_points`) come within this distance (m) of
+            a guessed (added) point are ranked after all others (:data:`CLEAR_BONUS`): a fitted
+            shape is right to a centimetre or two, not to the millimetre of a seen point.
     """
 
     ranker: Ranker = "cgdf"
@@ -322,6 +380,9 @@ class CloudPredictor:
     sampler: CloudSamplerConfig = field(default_factory=CloudSamplerConfig)
     collision: str | None = None
     max_start_risk: float = 0.8
+    completion: str | None = None
+    completion_config: CompletionConfig = field(default_factory=CompletionConfig)
+    guessed_clearance: float = 0.015
 
     def __post_init__(self) -> None:
         if self.ranker not in RANKERS:
@@ -349,6 +410,30 @@ class CloudPredictor:
             raise CloudError(
                 f"collision: expected None with view={self.view!r} (the check needs the depth "
                 f"views of view='partial'), found {self.collision!r}"
+            )
+        if not (
+            isinstance(self.guessed_clearance, (int, float))
+            and not isinstance(self.guessed_clearance, bool)
+            and 0.0 <= self.guessed_clearance < math.inf
+        ):
+            raise CloudError(
+                f"guessed_clearance: expected a finite number >= 0 (m), found "
+                f"{self.guessed_clearance!r}"
+            )
+        if self.completion is not None and self.view != "partial":
+            raise CloudError(
+                f"completion: expected None with view={self.view!r} (a full cloud has nothing "
+                f"to complete), found {self.completion!r}"
+            )
+        if self.completion is not None and self.collision is not None:
+            raise CloudError(
+                f"collision: expected None with completion (the check was trained on clouds as "
+                f"seen), found {self.collision!r}"
+            )
+        if not isinstance(self.completion_config, CompletionConfig):
+            raise CloudError(
+                f"completion_config: expected a CompletionConfig, found "
+                f"{type(self.completion_config).__name__}"
             )
         if not isinstance(self.sampler, CloudSamplerConfig):
             raise CloudError(
@@ -391,6 +476,42 @@ class CloudPredictor:
         """The checked cloud of the configured view."""
         return self.observe(observation, rng)[0]
 
+    def shape_library(self) -> ShapeLibrary | None:
+        """The completion's library (``None``: no completion), loaded once per process."""
+        if self.completion is None:
+            return None
+        if self.completion == "procedural":
+            return procedural_library()
+        return _load_library(str(self.completion))
+
+    def complete(
+        self, cloud: Cloud, views: DepthViews | None
+    ) -> tuple[Cloud, int, Completion | None]:
+        """The cloud completed as configured, how many of its first points were seen, and the
+        :class:`~baselines.shape_completion.Completion` (``None`` without completion)."""
+        library = self.shape_library()
+        if library is None or views is None:
+            return cloud, cloud.n, None
+        completion = complete_cloud(cloud, views, library, self.completion_config)
+        return completion.cloud, completion.n_observed, completion
+
+    def clear_of_guessed_points(self, cloud: Cloud, candidates: DualCandidates) -> np.ndarray:
+        """(N,) bool: both open hands of each candidate stay ``guessed_clearance`` (m) away from
+        the points a completion added (the last ``counts["completion_added"]`` of ``cloud``);
+        all true without added points."""
+        added = int(candidates.counts.get("completion_added", 0))
+        if added == 0 or candidates.n == 0 or self.guessed_clearance == 0.0:
+            return np.ones(candidates.n, dtype=bool)
+        guessed = cKDTree(cloud.points[cloud.n - added :])
+        volume = hand_volume_in_object(
+            candidates.poses.reshape(-1, 4, 4), get_gripper(candidates.grasps.gripper)
+        )  # (2N, Q, 3)
+        distance, _ = guessed.query(
+            volume.reshape(-1, 3), distance_upper_bound=self.guessed_clearance
+        )
+        near = np.isfinite(distance).reshape(candidates.n, -1)
+        return ~near.any(axis=1)
+
     def collision_path(self) -> str | None:
         """The hand-collision checkpoint the predictor uses (``None``: no check)."""
         if self.collision == "shipped":
@@ -416,12 +537,16 @@ class CloudPredictor:
             )
         rng = np.random.default_rng(object_seed(self.seed, SEED_PREFIX + object_id))
         cloud, views = self.observe(observation, rng)
+        cloud, n_observed, completion = self.complete(cloud, views)
         free = views if self.free_space else None
         cands = cloud_dual_candidates(cloud, self.sampler, rng=rng, views=free)
         if cands.n == 0 and self.sampler.clearance_factor > 0.0:  # thin walls: no clearance
             relaxed = dataclasses.replace(self.sampler, clearance_factor=0.0)
             cands = cloud_dual_candidates(cloud, relaxed, rng=rng, views=free)
             cands.counts["clearance_relaxed"] = 1
+        if completion is not None:
+            cands.counts["completion_added"] = completion.added
+            cands = hands_with_seen_contacts(cands, n_observed)
         return cloud, cands, rng, views
 
     def start_risk(self, cloud: Cloud, views: DepthViews, candidates: DualCandidates) -> np.ndarray:
@@ -461,6 +586,8 @@ class CloudPredictor:
         scores = self.rank(cloud, cands, rng)
         if self.force_closure:
             scores = scores + FC_BONUS * cloud_force_closure(cands)
+        if self.completion is not None:
+            scores = scores + CLEAR_BONUS * self.clear_of_guessed_points(cloud, cands)
         if views is not None and self.collision is not None:
             scores = scores + SAFE_BONUS * (
                 self.start_risk(cloud, views, cands) <= self.max_start_risk
@@ -491,10 +618,20 @@ random_partial_predictor = CloudPredictor(
     "random", view="partial", n_points=4096, sampler=PARTIAL_SAMPLER
 )
 """The random-rank control on what two seeded depth cameras see."""
+cgdf_completed_predictor = CloudPredictor(
+    "cgdf", view="partial", n_points=4096, sampler=PARTIAL_SAMPLER, completion="procedural"
+)
+"""CGDF on what two seeded depth cameras see, completed with the best-fitting procedural training
+object (:mod:`baselines.shape_completion`)."""
+random_completed_predictor = CloudPredictor(
+    "random", view="partial", n_points=4096, sampler=PARTIAL_SAMPLER, completion="procedural"
+)
+"""The random-rank control on the same completed two-camera candidates."""
 
 
 __all__ = [
     "CHECKPOINTS",
+    "CLEAR_BONUS",
     "FC_BONUS",
     "FOVY_DEG",
     "HAND_COLLISION_CHECKPOINT",
@@ -511,13 +648,16 @@ __all__ = [
     "camera_cloud",
     "camera_rays",
     "camera_views",
+    "cgdf_completed_predictor",
     "cgdf_partial_predictor",
     "cgdf_predictor",
     "classifier_scores",
     "cloud_force_closure",
+    "hands_with_seen_contacts",
     "load_ranker",
     "pointnetgpd_partial_predictor",
     "pointnetgpd_predictor",
+    "random_completed_predictor",
     "random_partial_predictor",
     "random_predictor",
 ]

@@ -38,6 +38,7 @@ import numpy as np
 from baselines.cloud_grasps import CloudError
 from baselines.cloud_predictor import (
     CloudPredictor,
+    cgdf_completed_predictor,
     cgdf_partial_predictor,
     cgdf_predictor,
     classifier_scores,
@@ -59,6 +60,7 @@ PREDICTORS: dict[str, CloudPredictor] = {
     "cgdf_partial": cgdf_partial_predictor,
     "random_partial": random_partial_predictor,
     "cgdf_partial_checked": dataclasses.replace(cgdf_partial_predictor, collision="shipped"),
+    "cgdf_completed": cgdf_completed_predictor,
 }
 
 

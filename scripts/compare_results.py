@@ -4,8 +4,9 @@
 
 For each results file (the ``--out`` JSON of ``dg16m evaluate --evaluators fce,gsr``): the dual
 grasps submitted, FCE, GSR (the mean over all submitted grasps, DESIGN.md) with an
-object-resampled 95% interval, the valid-only and gravity-level rates, the share of trials not
-run (invalid), and for every file after the first the paired object-bootstrap difference of its
+object-resampled 95% interval, the gravity-level rate, the valid-only rate and the share of
+trials not run (invalid; these two are the whole file's, marked so when only some of its objects
+are compared), and for every file after the first the paired object-bootstrap difference of its
 GSR minus the first file's (the same resampled objects for both). Only the objects every file
 scored are used. The bootstrap is seeded (``--seed``), so the output is reproducible.
 """
@@ -66,12 +67,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         metrics = results["gsr"]["metrics"]
         details = results["gsr"]["details"]
         invalid = details["statuses"].get("invalid", 0) / max(details["trials"], 1)
+        fce_rows = results["fce"]["per_object"]
+        fce = np.array([fce_rows[i]["fce"] if i in fce_rows else np.nan for i in ids])
+        fce_grasps = np.array([fce_rows[i]["grasps"] if i in fce_rows else 0 for i in ids])
+        gravity = np.array([per_object[path][i]["gsr_gravity"] for i in ids], dtype=float)
+        # valid-only and invalid need per-trial counts, which the file holds for all its objects
+        whole = (
+            "" if len(ids) == len(per_object[path]) else f" (all {len(per_object[path])} objects)"
+        )
         line = (
             f"{path}: {len(ids)} objects, {int(grasps.sum())} grasps, "
-            f"fce {100 * results['fce']['metrics']['fce']['rate']:.1f}%, "
+            f"fce {100 * np.nansum(fce * fce_grasps) / max(fce_grasps.sum(), 1):.1f}%, "
             f"gsr {100 * pooled_gsr(grasps, gsr, every):.1f}% [{100 * low:.1f}, {100 * high:.1f}], "
-            f"valid-only {100 * metrics['gsr_valid']['rate']:.1f}%, "
-            f"gravity {100 * metrics['gsr_gravity']['rate']:.1f}%, invalid {100 * invalid:.1f}%"
+            f"gravity {100 * pooled_gsr(grasps, gravity, every):.1f}%, "
+            f"valid-only {100 * metrics['gsr_valid']['rate']:.1f}%{whole}, "
+            f"invalid {100 * invalid:.1f}%{whole}"
         )
         if first is None:
             first = resampled

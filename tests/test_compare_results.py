@@ -15,11 +15,16 @@ def _script():
 
 def _results(path: Path, per_object: dict[str, tuple[int, float]]) -> Path:
     gsr = {
-        "per_object": {k: {"grasps": n, "gsr": g} for k, (n, g) in per_object.items()},
+        "per_object": {
+            k: {"grasps": n, "gsr": g, "gsr_gravity": 1.0} for k, (n, g) in per_object.items()
+        },
         "metrics": {"gsr_valid": {"rate": 0.5}, "gsr_gravity": {"rate": 0.9}},
         "details": {"statuses": {"invalid": 9, "success": 81}, "trials": 90},
     }
-    fce = {"metrics": {"fce": {"rate": 0.25}}}
+    fce = {
+        "metrics": {"fce": {"rate": 0.25}},
+        "per_object": {k: {"grasps": n, "fce": g} for k, (n, g) in per_object.items()},
+    }
     path.write_text(json.dumps({"results": {"fce": fce, "gsr": gsr}}))
     return path
 
@@ -32,10 +37,15 @@ def test_gsr_weighs_objects_by_their_grasps_and_differences_are_paired(tmp_path,
     assert "3 objects, 30 grasps" in first
     assert "gsr 50.0%" in first
     assert "invalid 10.0%" in first
+    assert "(all" not in first
+    assert "fce 50.0%" in first
+    assert "gravity 100.0%" in first
     # b: (5 * 1 + 10 * 0 + 10 * 0.5) / 25 = 40%; the object only b scored is left out
     assert "3 objects, 25 grasps" in second
     assert "gsr 40.0%" in second
     assert "minus the first -10.0 points" in second
+    assert "fce 40.0%" in second  # per object, over the 3 objects compared
+    assert "invalid 10.0% (all 4 objects)" in second  # per-trial counts: the whole file's
 
 
 def test_a_file_without_gsr_is_refused(tmp_path):
