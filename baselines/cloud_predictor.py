@@ -34,7 +34,11 @@ A :class:`CloudPredictor` is a predictor ``observation -> (poses (K, 2, 4, 4), s
    as they were ranked. With ``collision`` (a partial view; off by default, it measured no
    better, ``baselines/RESULTS.md``) a learned check (:mod:`baselines.hand_collision`) first
    ranks the candidates whose open hands likely start in unseen parts after all others
-   (:data:`SAFE_BONUS`).
+   (:data:`SAFE_BONUS`). With ``robust=True`` (the ``*_robust`` predictors) the passing
+   candidates whose cloud contacts would also hold through the protocol's pushes and twists
+   (:mod:`baselines.cloud_robust`, the generator's robust criterion with the centre of mass at
+   the origin and the inertia of the cloud's hull) rank first within the passing group, then
+   the nearly robust ones level by level (:data:`ROBUST_BONUS`).
 
 No step reads the mesh except :func:`camera_views` (and :func:`camera_cloud`, which keeps
 ``n_points`` of its hits), which stands in for a depth camera: it ray
@@ -80,6 +84,12 @@ from baselines.cloud_grasps import (
     check_cloud,
     cloud_dual_candidates,
     hand_volume_in_object,
+)
+from baselines.cloud_robust import (
+    MOTION_RATIO_LEVELS,
+    check_ratio_levels,
+    cloud_inertia,
+    robust_first,
 )
 from baselines.shape_completion import (
     Completion,
@@ -129,6 +139,13 @@ SAFE_BONUS = 2.0e3
 CLEAR_BONUS = 2.0e3
 """Added to the score of a candidate whose hands keep clear of a completion's guessed points
 (above :data:`FC_BONUS`: the clearance orders first, then the force-closure check)."""
+
+ROBUST_BONUS = 500.0
+"""Added to the score of a candidate that passes the robust criterion on the cloud
+(:mod:`baselines.cloud_robust`; a nearly robust one gains a share per level of
+``motion_ratio_levels`` its ratio is within). Below :data:`FC_BONUS`, which every robust candidate
+also has, and above the spread of ranker scores: the levels order first within their
+force-closure group."""
 
 HAND_COLLISION_CHECKPOINT = CHECKPOINTS / "hand-collision.pt"
 """The shipped hand-collision check (:mod:`baselines.train_hand_collision`)."""
@@ -364,6 +381,14 @@ class CloudPredictor:
             (:func:`~baselines.cloud_grasps.hand_volume_points`) come within this distance (m) of
             a guessed (added) point are ranked after all others (:data:`CLEAR_BONUS`): a fitted
             shape is right to a centimetre or two, not to the millimetre of a seen point.
+        robust: rank the passing candidates by the robust criterion on the cloud
+            (:mod:`baselines.cloud_robust`: the disturbance motion ratio under the protocol's
+            pushes and twists, the inertia that of the cloud's hull at the paper's 6 kg) within
+            their force-closure group: robust ones (ratio <= ``motion_ratio_levels[0]``) first,
+            then level by level (:data:`ROBUST_BONUS` in all); the ranker orders each level.
+            Needs ``force_closure``.
+        motion_ratio_levels: ascending motion ratios (1: no protocol load, left unresisted,
+            would move the object past the protocol's bounds).
     """
 
     ranker: Ranker = "cgdf"
@@ -383,6 +408,8 @@ class CloudPredictor:
     completion: str | None = None
     completion_config: CompletionConfig = field(default_factory=CompletionConfig)
     guessed_clearance: float = 0.015
+    robust: bool = False
+    motion_ratio_levels: tuple[float, ...] = MOTION_RATIO_LEVELS
 
     def __post_init__(self) -> None:
         if self.ranker not in RANKERS:
@@ -429,6 +456,14 @@ class CloudPredictor:
             raise CloudError(
                 f"collision: expected None with completion (the check was trained on clouds as "
                 f"seen), found {self.collision!r}"
+            )
+        if not isinstance(self.robust, bool):
+            raise CloudError(f"robust: expected a bool, found {self.robust!r}")
+        check_ratio_levels(self.motion_ratio_levels)
+        if self.robust and not self.force_closure:
+            raise CloudError(
+                "robust: expected force_closure=True (the robust criterion refines the "
+                "force-closure check), found force_closure=False"
             )
         if not isinstance(self.completion_config, CompletionConfig):
             raise CloudError(
@@ -585,13 +620,25 @@ class CloudPredictor:
             )
         scores = self.rank(cloud, cands, rng)
         if self.force_closure:
-            scores = scores + FC_BONUS * cloud_force_closure(cands)
+            passed = cloud_force_closure(cands)
+            scores = scores + FC_BONUS * passed
         if self.completion is not None:
             scores = scores + CLEAR_BONUS * self.clear_of_guessed_points(cloud, cands)
         if views is not None and self.collision is not None:
             scores = scores + SAFE_BONUS * (
                 self.start_risk(cloud, views, cands) <= self.max_start_risk
             )
+        if self.robust:
+            scores = robust_first(
+                scores,
+                passed,
+                cands.contact_points,
+                cands.contact_normals,
+                k=self.k,
+                bonus=ROBUST_BONUS,
+                inertia=cloud_inertia(cloud.points),
+                max_ratios=self.motion_ratio_levels,
+            ).scores
         top = np.argsort(-scores, kind="stable")[: self.k]
         return cands.poses[top].astype(np.float64), np.asarray(scores[top], dtype=np.float64)
 
@@ -627,6 +674,27 @@ random_completed_predictor = CloudPredictor(
     "random", view="partial", n_points=4096, sampler=PARTIAL_SAMPLER, completion="procedural"
 )
 """The random-rank control on the same completed two-camera candidates."""
+cgdf_robust_predictor = CloudPredictor(
+    "cgdf",
+    view="partial",
+    n_points=4096,
+    sampler=PARTIAL_SAMPLER,
+    completion="procedural",
+    robust=True,
+)
+""":data:`cgdf_completed_predictor` with the robust criterion on the completed cloud
+(:mod:`baselines.cloud_robust`): candidates whose contacts would hold through the protocol's
+pushes and twists rank first, CGDF orders them."""
+random_robust_predictor = CloudPredictor(
+    "random",
+    view="partial",
+    n_points=4096,
+    sampler=PARTIAL_SAMPLER,
+    completion="procedural",
+    robust=True,
+)
+"""The random-rank control of :data:`cgdf_robust_predictor`: the same candidates and the same
+criteria, random order within each group."""
 
 
 __all__ = [
@@ -638,6 +706,7 @@ __all__ = [
     "PAPER_FORCE_CLOSURE",
     "PARTIAL_SAMPLER",
     "RANKERS",
+    "ROBUST_BONUS",
     "SAFE_BONUS",
     "SEED_PREFIX",
     "VIEWS",
@@ -651,6 +720,7 @@ __all__ = [
     "cgdf_completed_predictor",
     "cgdf_partial_predictor",
     "cgdf_predictor",
+    "cgdf_robust_predictor",
     "classifier_scores",
     "cloud_force_closure",
     "hands_with_seen_contacts",
@@ -660,4 +730,5 @@ __all__ = [
     "random_completed_predictor",
     "random_partial_predictor",
     "random_predictor",
+    "random_robust_predictor",
 ]

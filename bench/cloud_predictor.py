@@ -41,6 +41,7 @@ from baselines.cloud_predictor import (
     cgdf_completed_predictor,
     cgdf_partial_predictor,
     cgdf_predictor,
+    cgdf_robust_predictor,
     classifier_scores,
     cloud_force_closure,
     load_ranker,
@@ -61,6 +62,7 @@ PREDICTORS: dict[str, CloudPredictor] = {
     "random_partial": random_partial_predictor,
     "cgdf_partial_checked": dataclasses.replace(cgdf_partial_predictor, collision="shipped"),
     "cgdf_completed": cgdf_completed_predictor,
+    "cgdf_robust": cgdf_robust_predictor,
 }
 
 
