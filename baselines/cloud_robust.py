@@ -45,7 +45,7 @@ from dataset_gen.parameters import PAPER
 from dataset_gen.robust import disturbance_motion
 
 ROBUST_CHUNK = 64
-"""Candidates whose motion ratio is computed per call of :func:`dataset_gen.robust.disturbance_motion`."""
+"""Candidates per call of :func:`dataset_gen.robust.disturbance_motion` in :func:`robust_first`."""
 
 MOTION_RATIO_LEVELS = (1.0, 2.0, 4.0)
 """Default levels of :func:`robust_first`: robust (the protocol's bounds), then within twice and
