@@ -173,10 +173,14 @@ def robust_first(
 
     Raises:
         CloudError: shapes other than documented, or bad ``k``, ``bonus``, ``max_ratios``.
+        dataset_gen.robust.RobustError: an inertia that is not a finite (3, 3) positive
+            definite matrix.
     """
     scores = np.asarray(scores, dtype=np.float64)
     passed = np.asarray(passed, dtype=bool)
-    n = scores.shape[0]
+    contact_points = np.asarray(contact_points, dtype=np.float64)
+    contact_normals = np.asarray(contact_normals, dtype=np.float64)
+    n = scores.shape[0] if scores.ndim else 0
     if scores.ndim != 1 or passed.shape != (n,):
         raise CloudError(
             f"scores, passed: expected shapes (N,) and (N,), found {scores.shape} and "

@@ -8,7 +8,8 @@ object-resampled 95% interval, the gravity-level rate, the valid-only rate and t
 trials not run (invalid; these two are the whole file's, marked so when only some of its objects
 are compared), and for every file after the first the paired object-bootstrap difference of its
 GSR minus the first file's (the same resampled objects for both). Only the objects every file
-scored are used. The bootstrap is seeded (``--seed``), so the output is reproducible.
+scored are used, less those of ``--exclude BENCHMARK`` (e.g. the selection set a setting was
+chosen on). The bootstrap is seeded (``--seed``), so the output is reproducible.
 """
 
 from __future__ import annotations
@@ -28,6 +29,14 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser.add_argument("results", type=Path, nargs="+", help="dg16m evaluate --out JSON files")
     parser.add_argument("--resamples", type=int, default=2000, help="bootstrap resamples (2000)")
     parser.add_argument("--seed", type=int, default=0, help="bootstrap seed (0)")
+    parser.add_argument(
+        "--exclude",
+        type=Path,
+        default=None,
+        metavar="BENCHMARK",
+        help="leave out the objects of this benchmark file (e.g. a selection set used to choose "
+        "settings, to compare on the objects not used for any choice)",
+    )
     return parser.parse_args(argv)
 
 
@@ -43,6 +52,16 @@ def load_results(path: Path) -> dict[str, Any]:
     return results
 
 
+def excluded_objects(path: Path) -> set[str]:
+    """The object ids of a benchmark file (:func:`dg16m_env.benchmark.read_benchmark`)."""
+    from dg16m_env.benchmark import BenchmarkError, read_benchmark
+
+    try:
+        return {o.object_id for o in read_benchmark(path).objects}
+    except (OSError, BenchmarkError) as exc:
+        raise SystemExit(f"--exclude {path}: expected a benchmark file, found {exc}") from None
+
+
 def pooled_gsr(grasps: np.ndarray, gsr: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """GSR over all grasps of the objects ``rows`` (..., n) of per-object ``grasps`` and
     ``gsr`` (n,): ``sum(grasps * gsr) / sum(grasps)`` along the last axis."""
@@ -54,6 +73,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     loaded = {path: load_results(path) for path in args.results}
     per_object = {p: r["gsr"]["per_object"] for p, r in loaded.items()}
     ids = sorted(set.intersection(*(set(v) for v in per_object.values())))
+    if args.exclude is not None:
+        excluded = excluded_objects(args.exclude)
+        ids = [i for i in ids if i not in excluded]
+        print(f"left out the {len(excluded)} objects of {args.exclude}")
     if not ids:
         raise SystemExit("expected objects that every file scored, found none in common")
     boot = np.random.default_rng(args.seed).integers(0, len(ids), (args.resamples, len(ids)))

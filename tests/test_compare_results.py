@@ -53,3 +53,23 @@ def test_a_file_without_gsr_is_refused(tmp_path):
     bad.write_text(json.dumps({"results": {"fce": {}}}))
     with pytest.raises(SystemExit, match="expected results of fce and gsr"):
         _script().main([str(bad)])
+
+
+def test_the_objects_of_a_selection_set_can_be_left_out(tmp_path, capsys):
+    from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+
+    selection = tmp_path / "selection.h5"
+    write_benchmark(selection, read_benchmark(EMBEDDED_BENCHMARK).select_objects(["table-1000000"]))
+    scored = {"table-1000000": (10, 1.0), "bench-1000000": (10, 0.0), "tub-1000000": (10, 0.5)}
+    a = _results(tmp_path / "a.json", scored)
+    assert _script().main([str(a), "--exclude", str(selection)]) == 0
+    note, line = capsys.readouterr().out.splitlines()
+    assert note == f"left out the 1 objects of {selection}"
+    assert "2 objects, 20 grasps" in line
+    assert "gsr 25.0%" in line  # (0 + 0.5) / 2 without the table's 1.0
+    with pytest.raises(SystemExit, match=r"--exclude .*: expected a benchmark file"):
+        _script().main([str(a), "--exclude", str(a)])
+    everything = tmp_path / "all.h5"
+    write_benchmark(everything, read_benchmark(EMBEDDED_BENCHMARK).select_objects(list(scored)))
+    with pytest.raises(SystemExit, match="expected objects that every file scored"):
+        _script().main([str(a), "--exclude", str(everything)])
