@@ -13,7 +13,7 @@ limits, e.g. the point-cloud predictors of :mod:`baselines.cloud_predictor`), ad
 the script again is harmless.
 
     python scripts/leaderboard_baselines.py --db runs/leaderboard/board.db --strategies "" \
-        --predictors baselines.cloud_predictor:cgdf_predictor,baselines.cloud_predictor:cgdf_completed_predictor
+        --predictors baselines.cloud_predictor:cgdf_predictor,baselines.cloud_predictor:cgdf_robust_predictor
 """
 
 from __future__ import annotations

@@ -167,17 +167,23 @@ def test_the_completed_predictor_keeps_hands_on_seen_points_and_refuses_bad_sett
         broken(obs)
 
 
-def test_the_completed_predictor_passes_the_runners_checks(tmp_path: Path, capsys):
+@pytest.mark.parametrize(
+    ("predictor", "object_id"),
+    [("cgdf_completed_predictor", "table-1000000"), ("cgdf_robust_predictor", "chair-1000000")],
+)
+def test_the_completed_predictors_pass_the_runners_checks(
+    tmp_path: Path, capsys, predictor: str, object_id: str
+):
     small = tmp_path / "small.h5"
-    write_benchmark(small, read_benchmark(EMBEDDED_BENCHMARK).select_objects(["table-1000000"]))
+    write_benchmark(small, read_benchmark(EMBEDDED_BENCHMARK).select_objects([object_id]))
     kept = tmp_path / "completed.h5"
-    argv = ["evaluate", "--predictor", "baselines.cloud_predictor:cgdf_completed_predictor"]
+    argv = ["evaluate", "--predictor", f"baselines.cloud_predictor:{predictor}"]
     argv += ["--benchmark", str(small), "--evaluators", "fce", "--save-submission", str(kept)]
     assert main([*argv, "--no-progress"]) == 0  # the default time and memory limits
     assert "failed on" not in capsys.readouterr().out
-    sub = read_submission(kept, object_ids=["table-1000000"])
+    sub = read_submission(kept, object_ids=[object_id])
     assert sub.metadata["failed_objects"] == {}
-    assert sub.poses["table-1000000"].shape == (10, 2, 4, 4)
+    assert sub.poses[object_id].shape == (10, 2, 4, 4)
 
 
 def test_the_library_command_reads_a_mesh_folder(tmp_path: Path, capsys):
