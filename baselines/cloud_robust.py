@@ -40,7 +40,7 @@ import trimesh
 from scipy.spatial import QhullError
 
 from baselines.cloud_grasps import CloudError
-from dataset_gen.checks import check_integer
+from dataset_gen.checks import check_integer, check_number
 from dataset_gen.parameters import PAPER
 from dataset_gen.robust import disturbance_motion
 
@@ -72,8 +72,7 @@ def cloud_inertia(points: np.ndarray, mass: float = PAPER.mass) -> np.ndarray:
         raise CloudError(f"points: expected shape (P, 3) with P >= 1, found {points.shape}")
     if not np.all(np.isfinite(points)):
         raise CloudError("points: expected finite values, found NaN or inf")
-    if not (isinstance(mass, (int, float)) and np.isfinite(mass) and mass > 0):
-        raise CloudError(f"mass: expected a positive finite number (kg), found {mass!r}")
+    mass = check_number("mass", mass, error=CloudError)
     centred = points - points.mean(axis=0)
     solid = points.shape[0] >= 4 and np.linalg.svd(centred, compute_uv=False)[-1] > 1e-9
     if solid:
@@ -100,8 +99,7 @@ def check_ratio_levels(max_ratios: Sequence[float]) -> np.ndarray:
     except (TypeError, ValueError):
         levels = np.zeros(0)
     if (
-        isinstance(max_ratios, (str, bytes))
-        or levels.ndim != 1
+        levels.ndim != 1
         or levels.size == 0
         or not np.all(np.isfinite(levels))
         or np.any(levels <= 0)
@@ -193,8 +191,7 @@ def robust_first(
         )
     check_integer("k", k, minimum=1, error=CloudError)
     check_integer("chunk_size", chunk_size, minimum=1, error=CloudError)
-    if not (isinstance(bonus, (int, float)) and np.isfinite(bonus) and bonus > 0):
-        raise CloudError(f"bonus: expected a positive finite number, found {bonus!r}")
+    bonus = check_number("bonus", bonus, error=CloudError)
     levels = check_ratio_levels(max_ratios)
     step = bonus / len(levels)
     order = np.flatnonzero(passed)
@@ -210,12 +207,7 @@ def robust_first(
             contact_normals[rows],
             center_of_mass=np.zeros(3),
             inertia=inertia,
-            mass=PAPER.mass,
-            gravity=PAPER.gravity,
-            mu=PAPER.mu,
-            f_high=PAPER.f_high,
-            threshold=PAPER.threshold,
-        )
+        )  # the paper's mass, gravity, mu, f_high and threshold: its defaults
         ratio[rows] = motion.ratio
         robust[rows] = motion.ratio <= levels[0]
         within = (motion.ratio[:, None] <= levels[None, :]).sum(axis=1)
