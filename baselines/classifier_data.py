@@ -7,8 +7,8 @@ A folder written by ``dg16m generate`` holds ``grasps/<id>.h5`` (the DG16M relea
 folder). Each object becomes a :class:`ClassifierObject`:
 
 * ``points`` (P, 3) float32: the cloud the ``classifier`` evaluator gives a classifier
-  (:func:`dg16m_env.observation.surface_points` with the same seed stream as
-  :func:`~dg16m_env.observation.object_observation`), so training and evaluation see the same
+  (:func:`dg16m_env.subjects.observation.surface_points` with the same seed stream as
+  :func:`~dg16m_env.subjects.observation.object_observation`), so training and evaluation see the same
   kind of input;
 * ``poses`` (N, 2, 4, 4) float32: the file's dual grasps as Panda hand poses (retargeted when
   the file was made for another gripper);
@@ -35,8 +35,8 @@ from tqdm import tqdm
 from dataset_gen.errors import Dg16mError
 from dataset_gen.io import read_dg16m
 from dataset_gen.sources import object_seed
-from dg16m_env.benchmark import file_poses
-from dg16m_env.observation import DEFAULT_POINTS, surface_points
+from dg16m_env.benchmark.sources import file_poses
+from dg16m_env.subjects.observation import DEFAULT_POINTS, surface_points
 
 LABELS = ("dg16m", "da2")
 """The label sources: our force-closure verdicts, and DA2's frictionless criterion."""

@@ -2,7 +2,7 @@
 mesh).
 
 What a robot sees of an object is a point cloud with normals: the whole surface
-(:func:`dg16m_env.observation.object_observation`) or what one or two depth cameras see of it
+(:func:`dg16m_env.subjects.observation.object_observation`) or what one or two depth cameras see of it
 (the environments' ``obs_mode="partial"``). :func:`cloud_dual_candidates` turns such a cloud into
 dual-arm Panda grasps by the steps of the mesh sampler (:mod:`dataset_gen.sampling`) and the
 generator's pairing (:mod:`dataset_gen.pairing`), with the cloud standing in for the mesh:

@@ -1,7 +1,7 @@
 """Sample-and-rank dual-grasp predictors that see only a point cloud (issue 27).
 
 A :class:`CloudPredictor` is a predictor ``observation -> (poses (K, 2, 4, 4), scores (K,))`` for
-``dg16m evaluate --predictor`` (:mod:`dg16m_env.predictor`). Per object it
+``dg16m evaluate --predictor`` (:mod:`dg16m_env.subjects.predictor`). Per object it
 
 1. takes the cloud: ``view="full"`` the observation's own ``points`` / ``normals`` (2048 points on
    the whole surface); ``view="partial"`` what ``n_cameras`` seeded depth cameras see
@@ -43,11 +43,11 @@ A :class:`CloudPredictor` is a predictor ``observation -> (poses (K, 2, 4, 4), s
 No step reads the mesh except :func:`camera_views` (and :func:`camera_cloud`, which keeps
 ``n_points`` of its hits), which stands in for a depth camera: it ray
 casts the observation's mesh from cameras placed as the environments place theirs
-(:func:`dg16m_env.envs.cameras.draw_cameras` around the object's box: azimuth spread around,
+(:func:`dg16m_env.physics.cameras.draw_cameras` around the object's box: azimuth spread around,
 elevation -70 to -15 degrees, distance 0.9-1.2 x 2.2 x the bounding radius; MuJoCo's default
 45-degree field of view, ``camera_resolution`` square pixels) and keeps each pixel's first hit
 with that face's outward normal, then ``n_points`` of them
-(:func:`~dg16m_env.envs.cameras.fixed_size`). For procedural objects the mesh is the simulated geometry, so this is the
+(:func:`~dg16m_env.physics.cameras.fixed_size`). For procedural objects the mesh is the simulated geometry, so this is the
 environments' ``obs_mode="partial"`` cloud up to the camera draw; it needs no OpenGL. One camera
 never sees two antipodal contacts of a convex object, so the partial predictors default to two
 cameras on roughly opposite sides (``MAX_CAMERAS`` of the environments).
@@ -196,7 +196,7 @@ def camera_views(
     Args:
         observation: needs ``mesh_vertices`` (V, 3), ``mesh_faces`` (F, 3) and ``bounds`` (2, 3)
             (object frame, m).
-        rng: draws the cameras (:func:`dg16m_env.envs.cameras.draw_cameras`).
+        rng: draws the cameras (:func:`dg16m_env.physics.cameras.draw_cameras`).
         n_cameras: cameras (>= 1).
         resolution: image side (pixels).
 
@@ -205,7 +205,7 @@ def camera_views(
         3)`` (m, object frame), and the :class:`~baselines.cloud_grasps.DepthViews` (each
         pixel's distance to its hit, ``inf`` where it saw nothing).
     """
-    from dg16m_env.envs.cameras import draw_cameras
+    from dg16m_env.physics.cameras import draw_cameras
 
     check_integer("n_cameras", n_cameras, minimum=1, error=CloudError)
     check_integer("resolution", resolution, minimum=2, error=CloudError)
@@ -266,7 +266,7 @@ def camera_cloud(
         ``points (n_points, 3)``, ``normals (n_points, 3)`` float32 (unit outward) and ``mask
         (n_points,)`` float32 (1 = real, 0 = padding), as the environments' partial observation.
     """
-    from dg16m_env.envs.cameras import fixed_size
+    from dg16m_env.physics.cameras import fixed_size
 
     check_integer("n_points", n_points, minimum=1, error=CloudError)
     points, normals, _ = camera_views(observation, rng, n_cameras=n_cameras, resolution=resolution)
@@ -492,7 +492,7 @@ class CloudPredictor:
     ) -> tuple[Cloud, DepthViews | None]:
         """The checked cloud of the configured view, and for ``view="partial"`` the depth
         views it came from (``None`` for the full cloud)."""
-        from dg16m_env.envs.cameras import fixed_size
+        from dg16m_env.physics.cameras import fixed_size
 
         if not isinstance(observation, dict):
             raise CloudError(f"observation: expected a dict, found {type(observation).__name__}")

@@ -14,7 +14,7 @@ What the criterion needs besides the contacts is the object's mass properties, w
 not carry:
 
 * the **centre of mass** is the observation frame's origin (the benchmark's object frame is
-  centred at the centre of mass, :mod:`dg16m_env.observation`), the same assumption as the
+  centred at the centre of mass, :mod:`dg16m_env.subjects.observation`), the same assumption as the
   cloud force-closure check (:func:`baselines.cloud_predictor.cloud_force_closure`);
 * the **inertia** is estimated by :func:`cloud_inertia`: a solid of uniform density filling the
   cloud's convex hull, scaled to the paper's 6 kg. It is a guess: a completed cloud

@@ -15,7 +15,7 @@ from typing import Any
 
 from baselines.submission_arguments import DEFAULT_STRATEGIES, add_submission_arguments
 from dataset_gen.cli import add_command
-from dg16m_env.evaluate_command import add_benchmark_arguments
+from dg16m_env.cli.evaluate import add_benchmark_arguments
 
 BASELINES_EXAMPLES = (
     "  dg16m baselines submissions --out runs/reference --workers 2\n"

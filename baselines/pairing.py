@@ -1,7 +1,7 @@
 """The paper's pairing baselines (Table III) as grasp predictors on a benchmark observation.
 
 A :class:`PairingBaseline` is a predictor ``observation -> (poses (k, 2, 4, 4), scores (k,))``
-(the observation of :func:`dg16m_env.observation.object_observation`; object frame, origin at
+(the observation of :func:`dg16m_env.subjects.observation.object_observation`; object frame, origin at
 the centre of mass, m). It rebuilds the object from the observation's mesh
 (:func:`object_from_observation`), samples ``n_grasps`` antipodal single-arm Panda grasps on it
 with the generator's sampler, pairs them with the generator's pairing code, and keeps ``k`` dual
@@ -91,7 +91,7 @@ def object_from_observation(
 
     Args:
         observation: a dict with ``object_id`` (str), ``mesh_vertices`` (V, 3) float (m) and
-            ``mesh_faces`` (F, 3) int (:func:`dg16m_env.observation.object_observation`);
+            ``mesh_faces`` (F, 3) int (:func:`dg16m_env.subjects.observation.object_observation`);
             ``family`` (str) is kept in the metadata when present.
         mass: object mass (kg) for its mass properties.
 

@@ -5,7 +5,7 @@
 ``random.h5``, ``farthest.h5``, ``force_closure.h5``
     the :class:`~baselines.pairing.PairingBaseline` predictions for every benchmark object, run
     in process (trusted code) on the object's observation
-    (:func:`dg16m_env.observation.object_observation`) with the benchmark's parameters (grasp
+    (:func:`dg16m_env.subjects.observation.object_observation`) with the benchmark's parameters (grasp
     count, friction, pruning distance, mass, gravity, force bound, threshold). The grasps are
     sampled once per object and shared by the three strategies (the same result as calling
     each predictor). Objects run in parallel with :func:`dataset_gen.parallel.run_tasks`; the
@@ -42,10 +42,12 @@ from dataset_gen.checks import check_integer
 from dataset_gen.errors import Dg16mError
 from dataset_gen.io import package_version
 from dataset_gen.parallel import check_backend, run_tasks
-from dg16m_env.benchmark import SOURCES, Benchmark, BenchmarkObject
-from dg16m_env.evaluators.context import BenchmarkRef, load_benchmark_ref
-from dg16m_env.observation import object_observation
-from dg16m_env.submission import EMBEDDED, validate_submission, write_submission
+from dg16m_env.benchmark.model import SOURCES, Benchmark, BenchmarkObject
+from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
+from dg16m_env.subjects.observation import object_observation
+from dg16m_env.subjects.submission import EMBEDDED
+from dg16m_env.subjects.submission_reader import validate_submission
+from dg16m_env.subjects.submission_writer import write_submission
 
 STORED_STRATEGIES: tuple[str, ...] = ("benchmark_fc_pass",)
 """Reference submissions taken from the benchmark's stored rows (no sampling)."""

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from dataset_gen.atomic import atomic_path, write_json_atomic, write_text_atomic
-from dg16m_env.benchmark import write_benchmark
+from dg16m_env.benchmark.file import write_benchmark
 from dg16m_env.evaluators import BenchmarkRef, load_benchmark_ref
 
 from .pairing import BaselineError

@@ -34,7 +34,7 @@ from baselines.sb3_common import (
     save_model,
     split_objects,
 )
-from dg16m_env.envs.dual_grasp_lift import ScriptedLiftPolicy
+from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
 from dg16m_env.evaluators import load_benchmark_ref, make
 
 ENV_ID = "dg16m_env/DualGraspLift-v0"

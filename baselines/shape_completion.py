@@ -102,9 +102,9 @@ class ShapeLibrary:
         cls, meshes: Sequence[tuple[str, object]], *, n_points: int = 2048, seed: int = 0
     ) -> ShapeLibrary:
         """A library of ``(name, trimesh.Trimesh)`` pairs, each sampled with ``n_points``
-        area-uniform points (:func:`dg16m_env.observation.surface_points`, stream seeded by
+        area-uniform points (:func:`dg16m_env.subjects.observation.surface_points`, stream seeded by
         ``seed`` and the shape's position in the list)."""
-        from dg16m_env.observation import surface_points
+        from dg16m_env.subjects.observation import surface_points
 
         check_integer("n_points", n_points, minimum=16, error=CloudError)
         ids, points, normals = [], [], []
@@ -161,7 +161,7 @@ class ShapeLibrary:
 def procedural_library(per_family: int = 20, n_points: int = 2048, seed: int = 0) -> ShapeLibrary:
     """The library of procedural training objects: seeds ``0 .. per_family - 1`` of each of the
     benchmark's families (:mod:`dataset_gen.procedural`; train seeds only, never a benchmark
-    seed), each in its observation frame (:func:`dg16m_env.observation.object_observation`),
+    seed), each in its observation frame (:func:`dg16m_env.subjects.observation.object_observation`),
     built once per process (about 0.03 s per shape)."""
     from dataset_gen.procedural import (
         FAMILIES,
@@ -457,7 +457,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the samples (0)")
     args = parser.parse_args(argv)
     if args.real_train:
-        from dg16m_env.real_benchmark import read_split
+        from dg16m_env.benchmark.real import read_split
 
         names = [str(i) for i in read_split()["train"]]
         files = [args.meshes / f"{name}.obj" for name in names]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from dg16m_env.evaluate_command import add_benchmark_arguments
+from dg16m_env.cli.evaluate import add_benchmark_arguments
 
 DEFAULT_STRATEGIES: tuple[str, ...] = ("random", "farthest", "force_closure", "benchmark_fc_pass")
 """The reference submissions written by default, one file ``<name>.h5`` each (names among

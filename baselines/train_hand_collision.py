@@ -3,7 +3,7 @@
 Reads top to bottom: for each procedural training object (``dataset_gen.procedural`` train split,
 never a benchmark seed), the two-camera cloud of :data:`baselines.cloud_predictor.PARTIAL_SAMPLER`'s
 predictor, its dual candidates, every open hand's features (:func:`hand_features`) and its truth
-(:func:`dg16m_env.trial_protocol.open_hand_penetration` deeper than the protocol's
+(:func:`dg16m_env.physics.trial_protocol.open_hand_penetration` deeper than the protocol's
 ``invalid_penetration``: the evaluator's own test on the simulated parts); then an MLP trained
 with a class-weighted logistic loss, the last ``val_objects`` objects held out for the loss and
 AUC it prints; the checkpoint is written atomically.
@@ -63,9 +63,9 @@ def object_hands(spec: tuple[str, int, int]) -> tuple[str, np.ndarray, np.ndarra
     """One training object's hands: ``(object id, features (H, F) float32, starts_inside (H,)
     bool)``; ``H = 2 x`` its dual candidates."""
     from dataset_gen.parameters import PROTOCOL
-    from dg16m_env.observation import object_observation
-    from dg16m_env.scene import compile_scene
-    from dg16m_env.trial_protocol import open_hand_penetration
+    from dg16m_env.physics.scene import compile_scene
+    from dg16m_env.physics.trial_protocol import open_hand_penetration
+    from dg16m_env.subjects.observation import object_observation
 
     family, object_seed_, seed = spec
     obj = make_procedural_object(family, object_seed_)

@@ -44,7 +44,7 @@ from baselines.dual_pointnet_gpd import DualPointNetGPD
 from baselines.grasp_geometry import count_parameters, grasp_centre_local
 from dataset_gen.atomic import write_json_atomic
 from dg16m_env.evaluators import load_benchmark_ref
-from dg16m_env.observation import object_observation
+from dg16m_env.subjects.observation import object_observation
 
 TARGET_S = 2.0
 """CGDF's target for N = 10,000 grasps on one core (s)."""

@@ -51,7 +51,7 @@ from baselines.cloud_predictor import (
 )
 from dataset_gen.atomic import write_json_atomic
 from dg16m_env.evaluators import load_benchmark_ref
-from dg16m_env.observation import object_observation
+from dg16m_env.subjects.observation import object_observation
 
 TARGET_S = 2.0
 """Target time of one prediction (cloud to 10 dual grasps) on one core (s)."""

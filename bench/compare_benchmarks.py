@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dg16m_env.benchmark import read_benchmark
-from dg16m_env.trial_protocol import TrialResults
+from dg16m_env.benchmark.file import read_benchmark
+from dg16m_env.physics.trial_protocol import TrialResults
 
 ROW_FIELDS = ("poses", "contact_points", "contact_normals", "source", "fc_passed", "fc_loss")
 OPTIONAL_ROW_FIELDS = ("hand_line_distance", "reseat_shift")

@@ -5,7 +5,7 @@ For each object (default: the first object of each family in the shipped benchma
 
 * **random**: episodes of seeded random actions (each up to the registered 200 steps, or until
   it terminates); only ``env.step`` is timed.
-* **scripted**: episodes of :class:`~dg16m_env.envs.dual_grasp_lift.ScriptedLiftPolicy`
+* **scripted**: episodes of :class:`~dg16m_env.envs.lift_expert.ScriptedLiftPolicy`
   (approach, grasp, lift, hold); ``env.step`` is timed apart from the policy, successes counted.
 * **reference** (of each): the bare ``mujoco.mj_step`` loop of the same compiled model for the
   same simulated time. Each run is replayed once more (seeded, so identical) with
@@ -42,7 +42,8 @@ import mujoco
 import numpy as np
 
 from dataset_gen.atomic import write_json_atomic
-from dg16m_env.envs.dual_grasp_lift import ACTION_SIZE, DualGraspLiftEnv, ScriptedLiftPolicy
+from dg16m_env.envs.dual_grasp_lift import ACTION_SIZE, DualGraspLiftEnv
+from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
 from dg16m_env.envs.objects import BenchmarkObjects
 
 TARGET_STEPS_PER_S = 500.0

@@ -14,7 +14,7 @@ their scenes compiled and everything warmed up (numba, caches) beforehand, measu
   nearly every ``reset`` misses the environment's object cache
   (:data:`dg16m_env.envs.objects.CACHE_SIZE` objects) and loads, compiles and samples the
   object again;
-* **reference**: :func:`dg16m_env.trial.run_trials` called directly, one trial per call, on the
+* **reference**: :func:`dg16m_env.physics.trial.run_trials` called directly, one trial per call, on the
   very poses the environment's trials ran at (``env.last_trial_poses``), on the same compiled
   scenes: the trial rate. Beside it the batched rate (one ``run_trials`` call per object) for
   context.
@@ -47,7 +47,7 @@ from dataset_gen.atomic import write_json_atomic
 from dg16m_env.envs.dual_grasp_pose import DualGraspPoseEnv
 from dg16m_env.envs.dual_grasp_select import DualGraspSelectEnv
 from dg16m_env.envs.spaces import action_from_poses
-from dg16m_env.trial import run_trials
+from dg16m_env.physics.trial import run_trials
 
 _NEXT: dict[int, int] = {}  # per environment: where its walk over the objects stands
 

@@ -30,9 +30,10 @@ import time
 from pathlib import Path
 
 from dataset_gen.atomic import write_json_atomic
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.evaluators import load_benchmark_ref, make
-from dg16m_env.submission import Submission
+from dg16m_env.subjects.submission import Submission
 
 TARGET_S = 300.0
 

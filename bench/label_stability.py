@@ -54,14 +54,10 @@ from dataset_gen.atomic import write_json_atomic
 from dataset_gen.errors import Dg16mError
 from dataset_gen.json_values import json_ready
 from dataset_gen.parallel import run_tasks
-from dg16m_env.benchmark import (
-    EMBEDDED_BENCHMARK,
-    SOURCES,
-    Benchmark,
-    BenchmarkObject,
-    read_benchmark,
-)
-from dg16m_env.labels import (
+from dg16m_env.benchmark.file import read_benchmark
+from dg16m_env.benchmark.model import SOURCES, Benchmark, BenchmarkObject
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
+from dg16m_env.physics.labels import (
     LEVELS,
     GraspLabels,
     PerturbationSpec,
@@ -69,9 +65,9 @@ from dg16m_env.labels import (
     row_seeds,
     success_probability,
 )
+from dg16m_env.physics.scene import SceneParameters, compile_scene
+from dg16m_env.physics.trial_protocol import TrialProtocol, TrialResults, TrialStatus
 from dg16m_env.rates import object_rate
-from dg16m_env.scene import SceneParameters, compile_scene
-from dg16m_env.trial import TrialProtocol, TrialResults, TrialStatus
 
 MODES = ("independent", "shipped")
 TARGET_ALL = 0.02

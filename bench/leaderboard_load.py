@@ -44,9 +44,10 @@ import httpx
 import numpy as np
 
 from dataset_gen.atomic import write_json_atomic
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.evaluators import load_benchmark_ref
-from dg16m_env.submission import write_submission
+from dg16m_env.subjects.submission_writer import write_submission
 from leaderboard.board import Board
 
 CLI = [sys.executable, "-m", "dataset_gen.cli", "leaderboard"]

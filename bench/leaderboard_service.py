@@ -34,7 +34,8 @@ import numpy as np
 
 from dataset_gen.atomic import write_json_atomic
 from dg16m_env.evaluators import load_benchmark_ref, make
-from dg16m_env.submission import validate_submission, write_submission
+from dg16m_env.subjects.submission_reader import validate_submission
+from dg16m_env.subjects.submission_writer import write_submission
 from leaderboard.board import Board
 
 CLI = [sys.executable, "-m", "dataset_gen.cli", "leaderboard"]

@@ -43,7 +43,8 @@ def _percentiles(values: list[float]) -> dict[str, float] | None:
 
 def build_numbers(folder: Path) -> dict[str, Any]:
     """Per-stage and per-arm numbers of a build folder (manifest and finished objects)."""
-    from dg16m_env.benchmark import SOURCES, read_benchmark
+    from dg16m_env.benchmark.file import read_benchmark
+    from dg16m_env.benchmark.model import SOURCES
 
     manifest = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
     entries = manifest["entries"]
@@ -101,7 +102,7 @@ def build_numbers(folder: Path) -> dict[str, Any]:
 @functools.lru_cache(maxsize=1)
 def _read_once(path: str) -> Any:
     """The benchmark, read once per worker process (the tasks index into it)."""
-    from dg16m_env.benchmark import read_benchmark
+    from dg16m_env.benchmark.file import read_benchmark
 
     return read_benchmark(path)
 
@@ -127,8 +128,10 @@ def shipped_numbers(benchmark: str, workers: int) -> dict[str, Any]:
     object's hull-to-mesh deviation recomputed from the mesh and hulls the file carries (the
     same :func:`~dataset_gen.decomposition.decomposition_report`, seed 0, the build used)."""
     from dataset_gen.parallel import run_tasks
-    from dg16m_env.benchmark import SOURCES, benchmark_file, read_benchmark
-    from dg16m_env.real_benchmark import MAX_HULL_P95_MM, REAL_LIMITS
+    from dg16m_env.benchmark.file import read_benchmark
+    from dg16m_env.benchmark.model import SOURCES
+    from dg16m_env.benchmark.names import benchmark_file
+    from dg16m_env.benchmark.real import MAX_HULL_P95_MM, REAL_LIMITS
 
     path = benchmark_file(benchmark)
     bench = read_benchmark(path)
@@ -176,8 +179,8 @@ def shipped_numbers(benchmark: str, workers: int) -> dict[str, Any]:
 
 
 def _screen_one(item: Any, meshes: str) -> dict[str, Any]:
-    from dg16m_env.benchmark import screen_passing
-    from dg16m_env.real_benchmark import REAL_PARAMETERS
+    from dg16m_env.benchmark.arms import screen_passing
+    from dg16m_env.benchmark.real import REAL_PARAMETERS
 
     object_id, category = item
     obj = ObjectSource(object_id, mesh=Path(meshes) / f"{object_id}.obj").load(REAL_PARAMETERS.mass)
@@ -187,11 +190,11 @@ def _screen_one(item: Any, meshes: str) -> dict[str, Any]:
 
 
 def screen_numbers(meshes: Path, workers: int) -> dict[str, Any]:
-    """The build's screen (:func:`dg16m_env.benchmark.screen_passing`) on every imported object:
+    """The build's screen (:func:`dg16m_env.benchmark.arms.screen_passing`) on every imported object:
     per category, how many reach the admission rule's passing pairs before the clearance rule
     (an upper bound on what the build admits)."""
     from dataset_gen.parallel import run_tasks
-    from dg16m_env.real_benchmark import REAL_LIMITS, REAL_SIZE, import_entries, read_split
+    from dg16m_env.benchmark.real import REAL_LIMITS, REAL_SIZE, import_entries, read_split
 
     entries = import_entries(meshes)
     items = [

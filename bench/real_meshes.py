@@ -10,7 +10,7 @@ core, in the same run:
    (:func:`dataset_gen.decomposition.decomposition_report`);
 2. **pairs** exactly as ``dg16m benchmark build --robust N`` draws them (:func:`sampled_pairs`:
    the open-hand clearance rule against the same parts, the paper's four arms and ``fc_robust``);
-3. **labels**: :func:`dg16m_env.labels.success_probability` (nominal + K perturbed trials);
+3. **labels**: :func:`dg16m_env.physics.labels.success_probability` (nominal + K perturbed trials);
    trials/s = trials / seconds of that call.
 
 Prints per object: hulls, deviation p95 / max (mm), decomposition seconds (fresh, cached), trials/s,
@@ -44,14 +44,11 @@ from dataset_gen.atomic import write_json_atomic
 from dataset_gen.decomposition import decomposition_report, object_parts
 from dataset_gen.json_values import json_ready
 from dataset_gen.sources import ObjectSource, mesh_sources, object_seed
-from dg16m_env.benchmark import (
-    SOURCES,
-    BenchmarkParameters,
-    procedural_benchmark_sources,
-    sampled_pairs,
-)
-from dg16m_env.labels import PerturbationSpec, row_seeds, success_probability
-from dg16m_env.scene import compile_scene
+from dg16m_env.benchmark.arms import sampled_pairs
+from dg16m_env.benchmark.model import SOURCES, BenchmarkParameters
+from dg16m_env.benchmark.sources import procedural_benchmark_sources
+from dg16m_env.physics.labels import PerturbationSpec, row_seeds, success_probability
+from dg16m_env.physics.scene import compile_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 SHARED = ROOT.parent / "shared" / "data" / "real"

@@ -28,16 +28,12 @@ import numpy as np
 
 from dataset_gen.atomic import write_json_atomic
 from dataset_gen.json_values import json_ready
-from dg16m_env.benchmark import (
-    EMBEDDED_BENCHMARK,
-    SOURCES,
-    Benchmark,
-    BenchmarkParameters,
-    benchmark_object,
-    procedural_benchmark_sources,
-    read_benchmark,
-)
-from dg16m_env.trial import TrialResults
+from dg16m_env.benchmark.build import benchmark_object
+from dg16m_env.benchmark.file import read_benchmark
+from dg16m_env.benchmark.model import SOURCES, Benchmark, BenchmarkParameters
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
+from dg16m_env.benchmark.sources import procedural_benchmark_sources
+from dg16m_env.physics.trial_protocol import TrialResults
 
 INPUT_FIELDS = ("poses", "contact_points", "contact_normals", "source", "fc_passed", "fc_loss")
 """Per-row inputs of the trials: identical unless sampling or force closure moved."""

@@ -30,7 +30,9 @@ from dataset_gen.atomic import write_json_atomic
 from dataset_gen.force_closure import evaluate
 from dataset_gen.json_values import json_ready
 from dataset_gen.robust import disturbance_motion
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, SOURCES, read_benchmark
+from dg16m_env.benchmark.file import read_benchmark
+from dg16m_env.benchmark.model import SOURCES
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 
 BINS = (0.0, 0.25, 0.5, 1.0, 2.0, 4.0, np.inf)
 

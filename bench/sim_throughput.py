@@ -6,7 +6,7 @@ benchmark's ~100 dual grasps exactly as ``dg16m benchmark build`` does (same rng
 arms: fc_pass, fc_fail, random, farthest), compiles the scene and measures, in one run (the
 machine is noisy, so every reference shares it):
 
-* **v2 trial path**: :func:`dg16m_env.trial.run_trials` on the nominal grasps (validity check,
+* **v2 trial path**: :func:`dg16m_env.physics.trial.run_trials` on the nominal grasps (validity check,
   one ``mujoco.rollout`` call per phase, 14 phases, a failed trial stopped at the end of its
   failing phase; each phase measured once by ``measure_steps``, then ``judge``). The library's
   ``check_initial_poses``, ``trial_controls``, ``measure_steps``, ``judge`` and its reference to
@@ -17,14 +17,14 @@ machine is noisy, so every reference shares it):
   trials/s = simulated (valid) trials / seconds inside ``mujoco.rollout``.
 * **v1 reference path** (implemented here, not library code): the previous runner, three rollout
   segments (close+gravity | 6 forces | 6 torques), after each segment the head of the trajectory
-  re-judged with :func:`dg16m_env.trial.analyse` and failed trials stopped, no contact
+  re-judged with :func:`dg16m_env.physics.trial.analyse` and failed trials stopped, no contact
   requirement (``min_contacts_after_close=0``). Run on the same valid nominal grasps; reported as
   trials/s per core against the v2 path (ratio v2/v1) with the number of verdicts that differ
   (they may: contact requirement, solver restarted at other steps).
-* **Labels**: :func:`dg16m_env.labels.success_probability` on the object's pairs, the real v2
+* **Labels**: :func:`dg16m_env.physics.labels.success_probability` on the object's pairs, the real v2
   benchmark work (K + 1 trials per pair: nominal + ``PerturbationSpec().n_perturbations``
   perturbed poses); pairs/s and trials/s per core.
-* **References**: the same valid trials at full length (:func:`dg16m_env.trial.simulate`, no
+* **References**: the same valid trials at full length (:func:`dg16m_env.physics.trial.simulate`, no
   early exit, the same per-phase segments) and a subsample stepped in a plain Python loop
   (``mj_setState`` + ``mj_step``, the full 14-phase trial, ``qacc_warmstart`` cleared at the first
   step of each segment as ``mujoco.rollout`` does), checked bit for bit against ``simulate``.
@@ -64,9 +64,10 @@ from dataset_gen.decomposition import object_parts
 from dataset_gen.objects import GraspObject
 from dataset_gen.procedural import benchmark_specs
 from dataset_gen.sources import ObjectSource, object_seed, procedural_sources
-from dg16m_env import labels, trial
-from dg16m_env.benchmark import BenchmarkParameters, sampled_pairs
-from dg16m_env.scene import Scene, compile_scene
+from dg16m_env.benchmark.arms import sampled_pairs
+from dg16m_env.benchmark.model import BenchmarkParameters
+from dg16m_env.physics import labels, trial
+from dg16m_env.physics.scene import Scene, compile_scene
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 MESH_ID = "dg16m_airplane"  # the id `dg16m benchmark build --meshes` gives it (the file stem)

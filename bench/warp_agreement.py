@@ -3,7 +3,7 @@
 Samples ``--rows`` rows of a benchmark file, stratified by arm (all arms; seeded), or every row
 of ``--objects`` objects drawn at random (seeded; the batches a build runs), and labels
 each row (nominal + K perturbed trials, the file's own perturbation seeds, scene and protocol)
-twice in this run: with C MuJoCo (the reference, :class:`~dg16m_env.simulator.Simulator`
+twice in this run: with C MuJoCo (the reference, :class:`~dg16m_env.physics.simulator.Simulator`
 ``"mujoco"``) and with MuJoCo Warp on ``--device`` (``cpu`` checks the path without a GPU). One
 object's rows go through each engine in one call, so Warp steps them as one batch of worlds.
 
@@ -44,10 +44,12 @@ import numpy as np
 from label_stability import machine, plan_work, sample_rows, wilson
 
 from dataset_gen.atomic import write_json_atomic
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, SOURCES, read_benchmark
-from dg16m_env.labels import LEVELS, GraspLabels, concatenate_labels, success_probability
-from dg16m_env.scene import compile_scene
-from dg16m_env.simulator import Simulator
+from dg16m_env.benchmark.file import read_benchmark
+from dg16m_env.benchmark.model import SOURCES
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
+from dg16m_env.physics.labels import LEVELS, GraspLabels, concatenate_labels, success_probability
+from dg16m_env.physics.scene import compile_scene
+from dg16m_env.physics.simulator import Simulator
 
 TARGET = 0.98
 """Binary labels identical between the engines on at least this share of sampled rows."""

@@ -2,7 +2,7 @@
 
 For the first ``--objects`` objects of a benchmark file (default: the shipped procedural one),
 takes each object's trials as a v2 build runs them (every row's nominal and K perturbed poses,
-about 900 trials per object) and times :func:`dg16m_env.trial.run_trials`:
+about 900 trials per object) and times :func:`dg16m_env.physics.trial.run_trials`:
 
 * on MuJoCo Warp (``--device``), once per ``--worlds`` count, the object's trials repeated up to
   that many so that one batch fills the worlds; the wall time of the whole call (C validity
@@ -34,11 +34,13 @@ import numpy as np
 from label_stability import machine
 
 from dataset_gen.atomic import write_json_atomic
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark
-from dg16m_env.labels import trial_poses
-from dg16m_env.scene import compile_scene
-from dg16m_env.simulator import Simulator, import_warp
-from dg16m_env.trial import TrialStatus, run_trials
+from dg16m_env.benchmark.file import read_benchmark
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
+from dg16m_env.physics.labels import trial_poses
+from dg16m_env.physics.scene import compile_scene
+from dg16m_env.physics.simulator import Simulator, import_warp
+from dg16m_env.physics.trial import run_trials
+from dg16m_env.physics.trial_protocol import TrialStatus
 
 TARGET = 2000.0
 """Trials per second wanted on a GPU."""

@@ -15,6 +15,6 @@
   limits of :mod:`leaderboard.protocol`); :mod:`leaderboard.client`: uploads over HTTP;
 * :mod:`leaderboard.commands`: ``dg16m leaderboard ...``.
 
-Submission files are HDF5 (:mod:`dg16m_env.submission`), validated before anything is stored
+Submission files are HDF5 (:mod:`dg16m_env.subjects.submission`), validated before anything is stored
 and never unpickled; the service never runs submitted code.
 """

@@ -69,7 +69,7 @@ from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from dg16m_env.submission import SubmissionInvalid
+from dg16m_env.subjects.submission import SubmissionInvalid
 
 from .board import (
     Board,

@@ -15,7 +15,7 @@ together the parts, each in its own module:
 * :mod:`leaderboard.checks`: the errors, and the checks of names, labels and ids.
 
 Any number of processes may open the same board. Submission files are validated
-(:func:`dg16m_env.submission.read_submission`, against the board's benchmark) before anything
+(:func:`dg16m_env.subjects.submission_reader.read_submission`, against the board's benchmark) before anything
 is stored; a refused file changes nothing.
 """
 
@@ -31,7 +31,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dg16m_env.submission import SubmissionInvalid, SubmissionLimits, read_submission
+from dg16m_env.subjects.submission import SubmissionInvalid, SubmissionLimits
+from dg16m_env.subjects.submission_reader import read_submission
 
 from .checks import (
     FILE_NAME,

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from dataset_gen.cli import add_command
-from dg16m_env.evaluate_command import add_benchmark_arguments
+from dg16m_env.cli.evaluate import add_benchmark_arguments
 
 DEFAULT_DB = Path("runs") / "leaderboard" / "board.db"
 

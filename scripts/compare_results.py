@@ -53,8 +53,9 @@ def load_results(path: Path) -> dict[str, Any]:
 
 
 def excluded_objects(path: Path) -> set[str]:
-    """The object ids of a benchmark file (:func:`dg16m_env.benchmark.read_benchmark`)."""
-    from dg16m_env.benchmark import BenchmarkError, read_benchmark
+    """The object ids of a benchmark file (:func:`dg16m_env.benchmark.file.read_benchmark`)."""
+    from dg16m_env.benchmark.file import read_benchmark
+    from dg16m_env.benchmark.model import BenchmarkError
 
     try:
         return {o.object_id for o in read_benchmark(path).objects}

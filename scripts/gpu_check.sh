@@ -104,7 +104,7 @@ timeout "$REBUILD_S" "$PYTHON" - "$DEVICE" "$OUT" <<'EOF' >> "$OUT/log.txt" 2>&1
 import json, sys, time
 from pathlib import Path
 from dg16m_env.benchmark import BenchmarkParameters, build_benchmark, procedural_benchmark_sources
-from dg16m_env.simulator import Simulator
+from dg16m_env.physics.simulator import Simulator
 
 device, out = sys.argv[1], Path(sys.argv[2])
 start = time.perf_counter()

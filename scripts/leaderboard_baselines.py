@@ -26,7 +26,8 @@ from pathlib import Path
 
 from baselines.commands import DEFAULT_STRATEGIES
 from baselines.reference_submissions import parse_strategies, write_reference_submissions
-from dg16m_env.predictor import PredictorSpec, submission_from_predictor
+from dg16m_env.subjects.predictor import submission_from_predictor
+from dg16m_env.subjects.predictor_process import PredictorSpec
 from leaderboard.board import (
     DEFAULT_EVALUATORS,
     Board,

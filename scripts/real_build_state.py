@@ -1,5 +1,5 @@
 """Carry a real-benchmark build between machines (a maintainer's step; see
-:mod:`dg16m_env.real_build_state`).
+:mod:`dg16m_env.benchmark.real_build_state`).
 
     python scripts/real_build_state.py save --meshes /work/real/meshes --build /work/real/build
     python scripts/real_build_state.py restore --meshes /work/real/meshes --build /work/real/build
@@ -18,8 +18,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dataset_gen.errors import Dg16mError
-from dg16m_env.real_benchmark import read_split
-from dg16m_env.real_build_state import restore_build_state, save_build_state
+from dg16m_env.benchmark.real import read_split
+from dg16m_env.benchmark.real_build_state import restore_build_state, save_build_state
 
 DEFAULT_STATE = Path(__file__).resolve().parents[1] / "data" / "real-build"
 

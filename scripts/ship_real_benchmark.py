@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dataset_gen.errors import Dg16mError
-from dg16m_env.real_benchmark import DATA, REAL_SIZE, ship_real_benchmark
+from dg16m_env.benchmark.real import DATA, REAL_SIZE, ship_real_benchmark
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -10,7 +10,7 @@ import pytest
 from planks import LONG_PLANK, SHORT_PLANK, plank
 
 if TYPE_CHECKING:  # the scenes import MuJoCo: only the tests that use them pay for it
-    from dg16m_env.scene import Scene
+    from dg16m_env.physics.scene import Scene
 
 REAL_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 
@@ -26,7 +26,7 @@ def real_data() -> Path:
 @pytest.fixture(scope="module")
 def short_scene() -> Scene:
     """0.6 m, 4 kg plank."""
-    from dg16m_env.scene import compile_scene
+    from dg16m_env.physics.scene import compile_scene
 
     return compile_scene(plank(*SHORT_PLANK))
 
@@ -34,6 +34,6 @@ def short_scene() -> Scene:
 @pytest.fixture(scope="module")
 def long_scene() -> Scene:
     """1.0 m, 6 kg plank."""
-    from dg16m_env.scene import compile_scene
+    from dg16m_env.physics.scene import compile_scene
 
     return compile_scene(plank(*LONG_PLANK))

@@ -14,9 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.evaluators import load_benchmark_ref
-from dg16m_env.submission import write_submission
+from dg16m_env.subjects.submission_writer import write_submission
 
 OBJECTS = 3
 

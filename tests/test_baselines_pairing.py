@@ -33,11 +33,12 @@ from baselines.reference_submissions import (
 from dataset_gen.force_closure import evaluate
 from dataset_gen.objects import is_rigid
 from dataset_gen.pairing import candidate_pairs, dual_contacts, score_pairs
-from dg16m_env.benchmark import SOURCES, write_benchmark
+from dg16m_env.benchmark.file import write_benchmark
+from dg16m_env.benchmark.model import SOURCES
+from dg16m_env.benchmark.ref import BenchmarkRef
 from dg16m_env.evaluators import load_benchmark_ref
-from dg16m_env.evaluators.context import BenchmarkRef
-from dg16m_env.observation import object_observation
-from dg16m_env.submission import validate_submission
+from dg16m_env.subjects.observation import object_observation
+from dg16m_env.subjects.submission_reader import validate_submission
 
 REPO = Path(__file__).resolve().parents[1]
 

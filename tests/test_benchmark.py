@@ -15,25 +15,24 @@ from dataset_gen.cli import main as cli_main
 from dataset_gen.generate import GenerationParameters, generate_dataset
 from dataset_gen.io import read_manifest
 from dataset_gen.sources import procedural_sources
-from dg16m_env.benchmark import (
-    EMBEDDED_BENCHMARK,
+from dg16m_env.benchmark.build import benchmark_object, build_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.model import (
     FLOAT_SIM,
-    SHIPPED_MUJOCO_VERSION,
     SOURCES,
     Benchmark,
     BenchmarkError,
     BenchmarkParameters,
-    benchmark_object,
-    build_benchmark,
+)
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK, SHIPPED_MUJOCO_VERSION
+from dg16m_env.benchmark.sources import (
     file_benchmark_sources,
     procedural_benchmark_sources,
-    read_benchmark,
     read_split,
     retarget_poses,
-    write_benchmark,
 )
-from dg16m_env.labels import PerturbationSpec
-from dg16m_env.trial import TrialResults, TrialStatus
+from dg16m_env.physics.labels import PerturbationSpec
+from dg16m_env.physics.trial_protocol import TrialResults, TrialStatus
 
 SMALL = BenchmarkParameters(
     n_grasps=60,
@@ -391,9 +390,9 @@ def test_shipped_benchmark_is_reproduced_by_a_rebuild() -> None:
 
 def test_defaults_are_the_papers() -> None:
     from dataset_gen.parameters import PAPER
-    from dg16m_env.gsr import GraspJob
-    from dg16m_env.scene import SceneParameters
-    from dg16m_env.trial import TrialProtocol
+    from dg16m_env.physics.gsr_core import GraspJob
+    from dg16m_env.physics.scene import SceneParameters
+    from dg16m_env.physics.trial_protocol import TrialProtocol
 
     params = BenchmarkParameters()
     assert (params.mu, params.mass, params.f_high, params.threshold) == (
@@ -447,7 +446,7 @@ def _grasp_set(n_pass: int, n_fail: int):
 
 
 def test_choose_file_pairs() -> None:
-    from dg16m_env.benchmark import choose_file_pairs
+    from dg16m_env.benchmark.arms import choose_file_pairs
 
     data = _grasp_set(3, 20)
     # The benchmark's rule: a passing shortfall is filled with failing pairs.
@@ -483,7 +482,7 @@ def test_summary_plot_does_not_touch_the_matplotlib_backend(
 ) -> None:
     import matplotlib
 
-    from dg16m_env.benchmark_report import plot_summary
+    from dg16m_env.benchmark.report_plot import plot_summary
 
     def refuse(*args, **kwargs):
         raise AssertionError("library code called matplotlib.use")

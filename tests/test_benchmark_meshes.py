@@ -23,33 +23,26 @@ from dataset_gen.cli import main as cli_main
 from dataset_gen.decomposition import DecompositionParameters, object_parts
 from dataset_gen.gripper import PANDA
 from dataset_gen.io import DualGraspSet, read_manifest, write_dg16m
-from dg16m_env import benchmark as benchmark_module
-from dg16m_env.benchmark import (
+from dg16m_env.benchmark import build as benchmark_build
+from dg16m_env.benchmark.build import benchmark_object, build_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.model import (
     ARMS,
-    EMBEDDED_BENCHMARK,
     SOURCES,
     BenchmarkError,
     BenchmarkParameters,
-    benchmark_object,
-    build_benchmark,
-    file_benchmark_sources,
     hand_line_distance,
-    mesh_benchmark_sources,
-    read_benchmark,
-    split_id,
-    write_benchmark,
 )
-from dg16m_env.benchmark_report import (
-    HAND_LINE_BINS,
-    benchmark_report,
-    format_summary,
-    hand_line,
-    plot_summary,
-)
-from dg16m_env.labels import PerturbationSpec
-from dg16m_env.reseat import DEFAULT_RESEAT_MAX, reseat_poses
-from dg16m_env.scene import compile_scene
-from dg16m_env.trial import InvalidReason, TrialProtocol, check_initial_poses, grasp_centres
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
+from dg16m_env.benchmark.report import HAND_LINE_BINS, benchmark_report, hand_line
+from dg16m_env.benchmark.report_plot import plot_summary
+from dg16m_env.benchmark.report_text import format_summary
+from dg16m_env.benchmark.sources import file_benchmark_sources, mesh_benchmark_sources, split_id
+from dg16m_env.physics.labels import PerturbationSpec
+from dg16m_env.physics.reseat import DEFAULT_RESEAT_MAX, reseat_poses
+from dg16m_env.physics.scene import compile_scene
+from dg16m_env.physics.trial_measures import grasp_centres
+from dg16m_env.physics.trial_protocol import InvalidReason, TrialProtocol, check_initial_poses
 
 TINY = BenchmarkParameters(
     n_grasps=40,
@@ -449,7 +442,7 @@ def test_release_airplane_with_reseat(
     # The open airplane needs CoACD's voxel repair: about 80 s on one core at the default
     # threshold, 30 s at 0.05. The coarser hulls test the same path.
     coarse = functools.partial(object_parts, params=DecompositionParameters(threshold=0.05))
-    monkeypatch.setattr(benchmark_module, "object_parts", coarse)
+    monkeypatch.setattr(benchmark_build, "object_parts", coarse)
     (tmp_path / "meshes").mkdir()
     (tmp_path / "grasps").mkdir()
     (tmp_path / "meshes" / "dg16m_airplane.obj").symlink_to(real_data / "dg16m_airplane.obj")

@@ -15,26 +15,21 @@ pytest.importorskip("mujoco")
 
 from dataset_gen.cli import main as cli_main
 from dataset_gen.json_values import json_ready
-from dg16m_env.benchmark import (
-    ARMS,
-    SOURCES,
-    Benchmark,
-    BenchmarkParameters,
-    build_benchmark,
-    procedural_benchmark_sources,
-    read_benchmark,
-)
-from dg16m_env.benchmark_report import (
+from dg16m_env.benchmark.build import build_benchmark
+from dg16m_env.benchmark.file import read_benchmark
+from dg16m_env.benchmark.model import ARMS, SOURCES, Benchmark, BenchmarkParameters
+from dg16m_env.benchmark.report import (
     HISTOGRAM_BINS,
     benchmark_report,
     failure_phases,
-    format_summary,
     p_histogram,
-    plot_summary,
     summary_by_family,
 )
-from dg16m_env.labels import LEVELS
-from dg16m_env.trial import PHASES, TrialStatus
+from dg16m_env.benchmark.report_plot import plot_summary
+from dg16m_env.benchmark.report_text import format_summary
+from dg16m_env.benchmark.sources import procedural_benchmark_sources
+from dg16m_env.physics.labels import LEVELS
+from dg16m_env.physics.trial_protocol import PHASES, TrialStatus
 
 SMALL = BenchmarkParameters(n_grasps=60, n_passing=6, n_failing=4, n_random=4, n_farthest=4)
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

@@ -20,8 +20,13 @@ from dataset_gen.objects import ConvexPart, make_object
 from dataset_gen.parameters import PAPER, PROTOCOL
 from dataset_gen.sampling import sample_antipodal_grasps
 from dataset_gen.sources import ObjectSource
-from dg16m_env.scene import compile_scene
-from dg16m_env.trial import InvalidReason, TrialProtocol, check_initial_poses, open_hand_penetration
+from dg16m_env.physics.scene import compile_scene
+from dg16m_env.physics.trial_protocol import (
+    InvalidReason,
+    TrialProtocol,
+    check_initial_poses,
+    open_hand_penetration,
+)
 
 
 def _box_part(center: tuple[float, float, float], half: tuple[float, float, float]) -> ConvexPart:

@@ -282,9 +282,9 @@ def test_commands_come_from_the_entry_point_group_in_a_stable_order() -> None:
         "dataset_gen.verify_command:register",
         "baselines.commands:register",
         "baselines.demo:register",
-        "dg16m_env.benchmark_command:register",
-        "dg16m_env.evaluate_command:register",
-        "dg16m_env.sim_command:register",
+        "dg16m_env.cli.benchmark:register",
+        "dg16m_env.cli.evaluate:register",
+        "dg16m_env.cli.sim:register",
         "leaderboard.commands:register",
     ]
     parser = build_parser()

@@ -19,7 +19,7 @@ from baselines.cloud_grasps import (
 from dataset_gen.gripper import PANDA
 from dataset_gen.pairing import grippers_collide
 from dataset_gen.parameters import PAPER
-from dg16m_env.observation import surface_points
+from dg16m_env.subjects.observation import surface_points
 
 HALF = np.array([0.25, 0.03, 0.15])
 """Half extents of the test box (m): a 6 cm slab the Panda can span across its thickness."""

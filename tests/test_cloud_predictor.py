@@ -24,11 +24,12 @@ from baselines.cloud_predictor import (
 )
 from dataset_gen.cli import main
 from dataset_gen.gripper import PANDA
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.evaluators import load_benchmark_ref
 from dg16m_env.evaluators.fce import REASONS, fce_verdicts
-from dg16m_env.observation import object_observation
-from dg16m_env.submission import read_submission
+from dg16m_env.subjects.observation import object_observation
+from dg16m_env.subjects.submission_reader import read_submission
 
 OBJECTS = ["bench-1000000"]
 RANKED = ["table-1000000", "bench-1000000", "chair-1000000"]

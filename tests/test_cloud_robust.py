@@ -23,7 +23,7 @@ from baselines.cloud_robust import MIN_SIDE, MOTION_RATIO_LEVELS, cloud_inertia,
 from dataset_gen.parameters import PAPER
 from dataset_gen.robust import disturbance_motion
 from dg16m_env.evaluators import load_benchmark_ref
-from dg16m_env.observation import object_observation
+from dg16m_env.subjects.observation import object_observation
 
 PLATE = (0.5, 0.3, 0.06)  # m: thinner than the Panda's opening
 

@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 from script_loader import load_script
 
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 
 TINY_REAL = Path(__file__).parent / "data" / "real_tiny" / "benchmark.h5"
 

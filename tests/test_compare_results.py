@@ -56,7 +56,8 @@ def test_a_file_without_gsr_is_refused(tmp_path):
 
 
 def test_the_objects_of_a_selection_set_can_be_left_out(tmp_path, capsys):
-    from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+    from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+    from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 
     selection = tmp_path / "selection.h5"
     write_benchmark(selection, read_benchmark(EMBEDDED_BENCHMARK).select_objects(["table-1000000"]))

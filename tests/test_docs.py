@@ -114,9 +114,9 @@ def test_pages_for_every_environment_and_package(site: Path) -> None:
         assert f'id="module-{package}"' in page
     # a constant's docstring "The real benchmark's parameters: the defaults ..." is prose, not
     # napoleon's "type: description" (docs/_ext/dg16m_docs.py, prose_before_colon)
-    api = (site / "api" / "dg16m_env.html").read_text(encoding="utf-8")
-    entry = api[api.index('id="dg16m_env.real_benchmark.REAL_PARAMETERS"') :][:8000]
-    entry = entry[: entry.index('id="dg16m_env.real_benchmark.REAL_LIMITS"')]
+    api = (site / "api" / "dg16m_env.benchmark.html").read_text(encoding="utf-8")
+    entry = api[api.index('id="dg16m_env.benchmark.real.REAL_PARAMETERS"') :][:8000]
+    entry = entry[: entry.index('id="dg16m_env.benchmark.real.REAL_LIMITS"')]
     assert "benchmark’s parameters: the defaults" in entry.replace("&#8217;", "’")
     assert "Type:" not in entry
     cli = (site / "cli.html").read_text(encoding="utf-8")
@@ -136,9 +136,10 @@ def test_pictures_are_small() -> None:
 def test_tutorial_predictor_gives_valid_grasps() -> None:
     """The tutorial's toy predictor returns what a submission accepts, for a real observation."""
     from dataset_gen.procedural import make_procedural_object
-    from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark
-    from dg16m_env.observation import object_observation
-    from dg16m_env.submission import hand_pose_faults
+    from dg16m_env.benchmark.file import read_benchmark
+    from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
+    from dg16m_env.subjects.observation import object_observation
+    from dg16m_env.subjects.submission import hand_pose_faults
 
     module = load_script(DOCS / "tutorials" / "my_grasps.py")
     bench = read_benchmark(EMBEDDED_BENCHMARK)

@@ -18,20 +18,22 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import dg16m_env  # noqa: F401  registers the environments
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, Benchmark, read_benchmark, write_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.model import Benchmark
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.envs import NAMESPACE
 from dg16m_env.envs.dual_grasp_lift import (
     ACTION_SIZE,
     OBS_SIZE,
     OBS_SLICES,
-    REWARD_WEIGHTS,
     TABLE_MARGIN,
     DualGraspLiftEnv,
-    ScriptedLiftPolicy,
 )
-from dg16m_env.envs.lift_scene import hand_points, lowest_hand_z
+from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
+from dg16m_env.envs.lift_reward import REWARD_WEIGHTS
 from dg16m_env.envs.spaces import rotation_from_6d
-from dg16m_env.replay import RenderError, make_renderer
+from dg16m_env.physics.lift_scene import hand_points, lowest_hand_z
+from dg16m_env.physics.replay import RenderError, make_renderer
 
 LIFT = f"{NAMESPACE}/DualGraspLift-v0"
 OBJECTS = ["tub-1000013", "ladder-1000012", "board-1000026", "shelf-1000011"]

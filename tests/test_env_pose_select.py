@@ -22,9 +22,10 @@ from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import dg16m_env
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, Benchmark, read_benchmark, write_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.model import Benchmark
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.envs import ENVIRONMENTS, NAMESPACE, env_ids
-from dg16m_env.envs.cameras import DepthCameras
 from dg16m_env.envs.common import (
     OBSERVATION_LIMIT,
     VECTOR_KWARGS,
@@ -34,8 +35,9 @@ from dg16m_env.envs.dual_grasp_pose import DualGraspPoseEnv
 from dg16m_env.envs.dual_grasp_select import DualGraspSelectEnv
 from dg16m_env.envs.objects import BenchmarkObjects
 from dg16m_env.envs.spaces import action_from_poses
-from dg16m_env.labels import GRAVITY_PHASE
-from dg16m_env.trial import PHASES, TrialStatus
+from dg16m_env.physics.cameras import DepthCameras
+from dg16m_env.physics.labels import GRAVITY_PHASE
+from dg16m_env.physics.trial_protocol import PHASES, TrialStatus
 
 OBJECTS = ["table-1000000", "frame-1000000", "crate-1000000"]
 POSE = f"{NAMESPACE}/DualGraspPose-v0"
@@ -631,8 +633,8 @@ def test_depth_cameras_back_project_onto_the_surface(bench_path: Path) -> None:
 
 def test_render_falls_back_to_osmesa(bench_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """No EGL context: the renderer is made with osmesa (when it is installed) instead."""
-    from dg16m_env.envs import cameras
-    from dg16m_env.replay import RenderError
+    from dg16m_env.physics import cameras
+    from dg16m_env.physics.replay import RenderError
 
     real = cameras.make_renderer
     tried: list[str] = []

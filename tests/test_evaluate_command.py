@@ -10,9 +10,11 @@ import pytest
 
 from dataset_gen.cli import main
 from dataset_gen.hashing import file_sha256
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.evaluators import load_benchmark_ref, read_results
-from dg16m_env.submission import read_submission, write_submission
+from dg16m_env.subjects.submission_reader import read_submission
+from dg16m_env.subjects.submission_writer import write_submission
 
 OBJECTS = ["table-1000000", "crate-1000006"]
 

@@ -12,9 +12,10 @@ import pytest
 from dataset_gen.hashing import file_sha256
 from dataset_gen.io import package_version
 from dataset_gen.sources import object_seed
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
+from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
 from dg16m_env.evaluators.classifier import ClassifierEvaluator, average_precision
-from dg16m_env.evaluators.context import BenchmarkRef, load_benchmark_ref
 from dg16m_env.evaluators.registry import EvaluatorError, make
 from dg16m_env.evaluators.result import EvaluationResult
 

@@ -11,7 +11,8 @@ from dataset_gen.errors import Dg16mError
 from dataset_gen.hashing import file_sha256
 from dataset_gen.io import package_version
 from dg16m_env import evaluators
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.evaluators import (
     EvaluationResult,
     Evaluator,
@@ -25,7 +26,7 @@ from dg16m_env.evaluators import (
 )
 from dg16m_env.evaluators.fce import REASONS
 from dg16m_env.evaluators.registry import _REGISTRY
-from dg16m_env.submission import Submission
+from dg16m_env.subjects.submission import Submission
 
 OBJECTS = ("table-1000000", "bench-1000003", "crate-1000006")
 
@@ -195,7 +196,7 @@ def test_gsr_counts_invalid_and_unsimulatable_grasps_as_failures(small, monkeypa
     poses = {i: np.array(p, copy=True) for i, p in sub.poses.items()}
     table = poses["table-1000000"]
     table[0, 0, :3, 3] = 0.0  # an open hand at the centre of mass: the trial is invalid
-    import dg16m_env.gsr as gsr_core
+    import dg16m_env.physics.gsr_core as gsr_core
 
     real = gsr_core.evaluate_object
 

@@ -8,19 +8,18 @@ import pytest
 pytest.importorskip("mujoco")
 
 from dataset_gen.sources import ObjectSource, procedural_sources
-from dg16m_env.benchmark import Benchmark, read_benchmark
-from dg16m_env.gsr import GraspJob, GsrError, evaluate_objects, jobs_from_mapping
-from dg16m_env.labels import PerturbationSpec
-from dg16m_env.trial import TrialResults
+from dg16m_env.benchmark.file import read_benchmark
+from dg16m_env.benchmark.model import Benchmark
+from dg16m_env.physics.gsr_core import GraspJob, GsrError, evaluate_objects, jobs_from_mapping
+from dg16m_env.physics.labels import PerturbationSpec
+from dg16m_env.physics.trial_protocol import TrialResults
 
 
 @pytest.fixture(scope="module")
 def built(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[GraspJob], Benchmark]:
-    from dg16m_env.benchmark import (
-        BenchmarkParameters,
-        build_benchmark,
-        procedural_benchmark_sources,
-    )
+    from dg16m_env.benchmark.build import build_benchmark
+    from dg16m_env.benchmark.model import BenchmarkParameters
+    from dg16m_env.benchmark.sources import procedural_benchmark_sources
 
     out = tmp_path_factory.mktemp("gsr")
     params = BenchmarkParameters(

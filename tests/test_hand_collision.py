@@ -28,9 +28,9 @@ from baselines.hand_collision import (
 from baselines.train_hand_collision import Args, main, object_hands
 from dataset_gen.parameters import PROTOCOL
 from dataset_gen.procedural import make_procedural_object
-from dg16m_env.observation import object_observation
-from dg16m_env.scene import compile_scene
-from dg16m_env.trial_protocol import open_hand_penetration
+from dg16m_env.physics.scene import compile_scene
+from dg16m_env.physics.trial_protocol import open_hand_penetration
+from dg16m_env.subjects.observation import object_observation
 
 HELD_OUT = ("table", 1000012)  # a benchmark object: never a training object
 

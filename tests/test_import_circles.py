@@ -1,4 +1,6 @@
-"""No import circles between the project's modules (DESIGN.md: dependencies point one way).
+"""No import circles between the project's modules (DESIGN.md: dependencies point one way), and
+``dg16m_env``'s imports follow its layers (:data:`LAYERS`: each module imports only from its own
+layer and the layers below).
 
 Imports are read with :mod:`ast`, function-level ones included (a lazy import that only hides a
 circle is still a circle), so the check needs no heavy import and runs in well under a second.
@@ -135,22 +137,119 @@ def test_baselines_command_module_sits_above_what_it_calls(graph: dict[str, set[
     assert not light & {"baselines.reference_submissions", "baselines.reproduce"}
 
 
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("dg16m_env.rates",),
+    ("dg16m_env.physics",),
+    ("dg16m_env.benchmark",),
+    ("dg16m_env.subjects",),
+    ("dg16m_env.evaluators",),
+    ("dg16m_env.envs",),
+    ("dg16m_env.cli",),
+)
+"""``dg16m_env``'s layers, bottom first: module-name prefixes (see ``dg16m_env/__init__.py``)."""
+
+#: Modules outside the layers: the package's ``__init__`` (it imports envs to register them) and
+#: the table of old import paths (it imports nothing of the package by an import statement).
+UNLAYERED = {"dg16m_env", "dg16m_env._compat"}
+
+
+def layer_of(module: str) -> int | None:
+    """The index in :data:`LAYERS` of a ``dg16m_env`` module, ``None`` for other modules."""
+    for index, prefixes in enumerate(LAYERS):
+        if any(module == p or module.startswith(p + ".") for p in prefixes):
+            return index
+    return None
+
+
+def upward_imports(graph: dict[str, set[str]]) -> list[str]:
+    """Every import of a ``dg16m_env`` module from a higher layer, as ``"a (layer) -> b (layer)"``."""
+    found = []
+    for module, deps in sorted(graph.items()):
+        here = layer_of(module)
+        if here is None:
+            continue
+        for dep in sorted(deps):
+            there = layer_of(dep)
+            if there is not None and there > here:
+                found.append(f"{module} ({LAYERS[here][0]}) -> {dep} ({LAYERS[there][0]})")
+    return found
+
+
+def test_the_layer_check_sees_an_upward_import() -> None:
+    """An import from a higher layer is reported, one from a lower layer or the same is not."""
+    graph = {
+        "dg16m_env.physics.scene": {"dg16m_env.benchmark.file"},
+        "dg16m_env.benchmark.file": {"dg16m_env.physics.scene", "dg16m_env.benchmark.model"},
+        "dg16m_env.benchmark.model": set(),
+        "dg16m_env.cli.evaluate": {"dg16m_env.envs.common"},
+    }
+    assert upward_imports(graph) == [
+        "dg16m_env.physics.scene (dg16m_env.physics) -> dg16m_env.benchmark.file "
+        "(dg16m_env.benchmark)"
+    ]
+
+
+def test_every_dg16m_env_module_sits_in_a_layer(graph: dict[str, set[str]]) -> None:
+    """A new module goes where its layer is: none sits outside the layers (besides
+    :data:`UNLAYERED`), and the package's top holds only the layers, rates and the old-path
+    table."""
+    outside = sorted(
+        m for m in graph if m.startswith("dg16m_env") and layer_of(m) is None and m not in UNLAYERED
+    )
+    assert outside == [], f"expected every dg16m_env module in a layer, found {outside}"
+
+
+def test_dg16m_env_imports_point_down_the_layers(graph: dict[str, set[str]]) -> None:
+    found = upward_imports(graph)
+    assert found == [], f"expected no import against dg16m_env's layer order, found {found}"
+
+
+def test_the_table_of_old_paths_imports_nothing_of_the_package(
+    graph: dict[str, set[str]],
+) -> None:
+    """``dg16m_env._compat`` resolves old paths by name when they are used; it is not a
+    dependency of any layer, and no layer imports through it."""
+    assert graph["dg16m_env._compat"] == set()
+    users = sorted(m for m, deps in graph.items() if "dg16m_env._compat" in deps)
+    assert users == ["dg16m_env", "dg16m_env.envs.dual_grasp_lift"], users
+
+
+#: About 800 lines (issue 42's target), with room for a module whose documentation is long: the
+#: Lift task's module is 839 lines, 188 of them its docstring (spaces, rewards, success, options).
+MAX_MODULE_LINES = 850
+
+
+def test_no_dg16m_env_library_module_is_over_about_800_lines() -> None:
+    """The long modules were cut where their concepts part; none grows back past
+    :data:`MAX_MODULE_LINES`."""
+    long = {
+        str(path.relative_to(REPO)): n
+        for path in sorted((REPO / "dg16m_env").rglob("*.py"))
+        if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES
+    }
+    assert long == {}, f"expected no dg16m_env module over {MAX_MODULE_LINES} lines, found {long}"
+
+
 def test_trial_engine_choice_sits_above_both_engines(graph: dict[str, set[str]]) -> None:
-    """``dg16m_env.trial`` (the engine choice and the C path) imports the Warp engine and the
-    protocol; the Warp engine imports the protocol, never the module that chooses it."""
-    assert {"dg16m_env.warp_trials", "dg16m_env.trial_protocol"} <= graph["dg16m_env.trial"]
-    assert "dg16m_env.trial" not in graph["dg16m_env.warp_trials"]
-    assert "dg16m_env.trial_protocol" in graph["dg16m_env.warp_trials"]
-    assert not graph["dg16m_env.trial_protocol"] & {"dg16m_env.trial", "dg16m_env.warp_trials"}
+    """``dg16m_env.physics.trial`` (the engine choice and the C path) imports the Warp engine and
+    the protocol; the Warp engine imports the protocol, never the module that chooses it."""
+    trial, warp = "dg16m_env.physics.trial", "dg16m_env.physics.warp_trials"
+    protocol = "dg16m_env.physics.trial_protocol"
+    assert {warp, protocol} <= graph[trial]
+    assert trial not in graph[warp]
+    assert protocol in graph[warp]
+    assert not graph[protocol] & {trial, warp}
 
 
 def test_trial_keeps_its_public_names() -> None:
-    """Every public name of the protocol is importable from ``dg16m_env.trial`` and is the same
-    object, and ``run_trials`` still takes the engine."""
+    """Every public name of the protocol and its measures is importable from
+    ``dg16m_env.physics.trial`` and is the same object, and ``run_trials`` still takes the
+    engine."""
     import inspect
 
-    from dg16m_env import trial, trial_protocol
+    from dg16m_env.physics import trial, trial_measures, trial_protocol
 
-    for name in trial_protocol.__all__:
-        assert getattr(trial, name) is getattr(trial_protocol, name), name
+    for module in (trial_protocol, trial_measures):
+        for name in module.__all__:
+            assert getattr(trial, name) is getattr(module, name), name
     assert "simulator" in inspect.signature(trial.run_trials).parameters

@@ -20,8 +20,9 @@ from dataset_gen.pairing import candidate_pairs, score_pairs
 from dataset_gen.procedural import benchmark_specs
 from dataset_gen.sampling import sample_antipodal_grasps
 from dataset_gen.sources import object_seed, procedural_sources
-from dg16m_env.benchmark import SOURCES, BenchmarkParameters, sampled_pairs
-from dg16m_env.labels import (
+from dg16m_env.benchmark.arms import sampled_pairs
+from dg16m_env.benchmark.model import SOURCES, BenchmarkParameters
+from dg16m_env.physics.labels import (
     GraspLabels,
     LabelError,
     PerturbationSpec,
@@ -30,15 +31,10 @@ from dg16m_env.labels import (
     row_seeds,
     success_probability,
 )
-from dg16m_env.scene import Scene, compile_scene
-from dg16m_env.trial import (
-    PHASES,
-    TrialProtocol,
-    TrialResults,
-    TrialStatus,
-    grasp_centres,
-    run_trials,
-)
+from dg16m_env.physics.scene import Scene, compile_scene
+from dg16m_env.physics.trial import run_trials
+from dg16m_env.physics.trial_measures import grasp_centres
+from dg16m_env.physics.trial_protocol import PHASES, TrialProtocol, TrialResults, TrialStatus
 
 CLOSE, GRAVITY = PHASES.index("close"), PHASES.index("gravity")
 

@@ -15,7 +15,7 @@ from leaderboard_data import db_dump, set_benchmark, small_benchmark, tree, vali
 from test_submission import CORPUS, IDS, SHA
 
 from dataset_gen.hashing import file_sha256
-from dg16m_env.submission import SubmissionInvalid
+from dg16m_env.subjects.submission import SubmissionInvalid
 from leaderboard.board import (
     Board,
     BoardError,

@@ -281,7 +281,7 @@ def test_submit_hashes_the_file_once(
     tmp_path: Path, bench: Path, good: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     import dataset_gen.hashing
-    import dg16m_env.submission
+    import dg16m_env.subjects.submission_reader
 
     calls: list[str] = []
     real = dataset_gen.hashing.file_sha256
@@ -290,7 +290,7 @@ def test_submit_hashes_the_file_once(
         calls.append(str(path))
         return real(path)
 
-    monkeypatch.setattr(dg16m_env.submission, "file_sha256", counted)
+    monkeypatch.setattr(dg16m_env.subjects.submission_reader, "file_sha256", counted)
     for module in ("leaderboard.board", "leaderboard.files"):
         monkeypatch.setattr(f"{module}.file_sha256", counted, raising=False)
     board = Board(tmp_path / "board.db", benchmark=bench, evaluators=("fce",))

@@ -31,9 +31,10 @@ HOSTILE_METRIC = "<i>metric</i>"
 @pytest.fixture(scope="module")
 def fce_result(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """A real ``EvaluationResult.to_dict()`` of fce (3 objects, 3 grasps each; about 1 s)."""
-    from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+    from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+    from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
     from dg16m_env.evaluators import load_benchmark_ref, make
-    from dg16m_env.submission import write_submission
+    from dg16m_env.subjects.submission_writer import write_submission
 
     tmp = tmp_path_factory.mktemp("fce")
     bench = read_benchmark(EMBEDDED_BENCHMARK)

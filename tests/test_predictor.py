@@ -13,17 +13,15 @@ import h5py
 import numpy as np
 import pytest
 
-from dg16m_env import submission as submission_module
-from dg16m_env.predictor import (
+from dg16m_env.subjects.predictor import (
     FAILED_PLACEHOLDER,
-    PredictorError,
     PredictorRun,
-    PredictorSpec,
     _metadata_errors,
-    load_target,
     run_predictor,
     submission_from_predictor,
 )
+from dg16m_env.subjects.predictor_process import PredictorError, PredictorSpec, load_target
+from dg16m_env.subjects.submission_reader import validate_submission
 
 PREDICTORS = '''
 import os
@@ -393,7 +391,7 @@ def test_metadata_errors_are_shortened() -> None:
 
 
 def test_submission_from_predictor(module_file: Path, tmp_path: Path) -> None:
-    from dg16m_env.benchmark import write_benchmark
+    from dg16m_env.benchmark.file import write_benchmark
     from dg16m_env.evaluators import load_benchmark_ref
 
     embedded = load_benchmark_ref()
@@ -426,10 +424,9 @@ def test_submission_from_predictor(module_file: Path, tmp_path: Path) -> None:
     assert meta["failed_objects"] == {crate: "RuntimeError: crates are hard"}
     assert meta["failed_grasps_per_object"] == 3
     assert (meta["n_points"], meta["seed"]) == (64, 3)
-    validate = getattr(submission_module, "validate_submission", None)
-    if validate is None:
-        pytest.skip("dg16m_env.submission.validate_submission is not there yet")
-    problems = validate(out, object_ids=ref.object_ids, benchmark_sha256=ref.sha256, embedded=False)
+    problems = validate_submission(
+        out, object_ids=ref.object_ids, benchmark_sha256=ref.sha256, embedded=False
+    )
     assert problems == []
 
 
@@ -444,7 +441,7 @@ def test_the_progress_bar_shows_each_object_once(
 
 
 def test_a_failed_object_weighs_as_much_as_the_largest_answer() -> None:
-    from dg16m_env.predictor import failed_placeholders
+    from dg16m_env.subjects.predictor import failed_placeholders
 
     assert failed_placeholders({}).shape == (1, 2, 4, 4)  # nothing answered: one failure
     answered = {"a": np.zeros((2, 2, 4, 4)), "b": np.zeros((10, 2, 4, 4))}

@@ -447,7 +447,8 @@ def _board_view(db: Path) -> dict[str, Any]:
 def test_leaderboard_worker_survives_a_killed_worker_node(cluster: Any, tmp_path: Path) -> None:
     """``dg16m leaderboard worker --backend ray`` scores a job (fce, gsr) while a node dies; the
     board shows what a local worker's board shows."""
-    from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+    from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+    from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 
     ensure_workers(cluster)
     shipped = read_benchmark(EMBEDDED_BENCHMARK)

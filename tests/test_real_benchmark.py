@@ -20,20 +20,11 @@ from dataset_gen.budget import StageTimeoutError, run_with_budget
 from dataset_gen.cli import main as cli_main
 from dataset_gen.decomposition import DecompositionParameters, object_parts
 from dataset_gen.errors import MeshError
-from dg16m_env.benchmark import (
-    EMBEDDED_BENCHMARK,
-    SOURCES,
-    BenchmarkError,
-    BenchmarkParameters,
-    BuildLimits,
-    benchmark_file,
-    build_benchmark,
-    mesh_benchmark_sources,
-    read_benchmark,
-    write_benchmark,
-)
-from dg16m_env.labels import PerturbationSpec
-from dg16m_env.real_benchmark import (
+from dg16m_env.benchmark.build import BuildLimits, build_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.model import SOURCES, BenchmarkError, BenchmarkParameters
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK, benchmark_file
+from dg16m_env.benchmark.real import (
     REAL_SPLIT_FILE,
     build_real_benchmark,
     check_split,
@@ -46,6 +37,8 @@ from dg16m_env.real_benchmark import (
     ship_real_benchmark,
     with_membership,
 )
+from dg16m_env.benchmark.sources import mesh_benchmark_sources
+from dg16m_env.physics.labels import PerturbationSpec
 
 TINY = BenchmarkParameters(
     n_grasps=40,
@@ -60,11 +53,11 @@ TINY = BenchmarkParameters(
 @pytest.fixture(autouse=True)
 def coarse_parts(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     """Quick CoACD settings and a private cache (the faithful settings are tested elsewhere)."""
-    from dg16m_env import benchmark as benchmark_module
+    from dg16m_env.benchmark import build as benchmark_build
 
     monkeypatch.setenv("DG16M_CACHE_DIR", str(tmp_path / "cache"))
     coarse = functools.partial(object_parts, params=DecompositionParameters(threshold=0.05))
-    monkeypatch.setattr(benchmark_module, "object_parts", coarse)
+    monkeypatch.setattr(benchmark_build, "object_parts", coarse)
 
 
 def _plank(folder: Path, name: str, size: tuple[float, float, float] = (0.5, 0.05, 0.3)) -> Path:
@@ -348,7 +341,7 @@ def test_real_build_replaces_rejected_objects_and_checks_hashes(
             "b-plank": ("B", (0.4, 0.06, 0.3)),
         },
     )
-    from dg16m_env.real_benchmark import import_entries
+    from dg16m_env.benchmark.real import import_entries
 
     split = make_split(import_entries(meshes), size=2, seed=0)
     # put the cube first in category A, so that it must be replaced
@@ -363,7 +356,7 @@ def test_real_build_replaces_rejected_objects_and_checks_hashes(
     assert final["rejected"]["a-cube"]["stage"] == "screen"
     assert final["train"] == []
     # resumed from the same split, the folder's rejection stands: the cube is not built again
-    import dg16m_env.real_benchmark as real_benchmark
+    import dg16m_env.benchmark.real as real_benchmark
 
     asked: list[str] = []
 
@@ -421,7 +414,7 @@ def test_real_build_replaces_rejected_objects_and_checks_hashes(
     new_sha = hashlib.sha256((meshes / "b-plank.obj").read_bytes()).hexdigest()
     imported["entries"]["b-plank"]["sha256"] = new_sha
     manifest_path.write_text(json.dumps(imported))
-    from dg16m_env.real_benchmark import import_entries as entries_of
+    from dg16m_env.benchmark.real import import_entries as entries_of
 
     revised = revise_split(final, entries_of(meshes), note="b-plank re-imported")
     assert revised["revisions"][-1]["changed_sha256"] == ["b-plank"]
@@ -441,16 +434,16 @@ def test_real_build_replaces_rejected_objects_and_checks_hashes(
 def test_benchmarks_by_short_name(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from dg16m_env import benchmark as benchmark_module
+    from dg16m_env.benchmark import names as benchmark_names
 
     assert benchmark_file(None) == EMBEDDED_BENCHMARK
     assert benchmark_file("procedural") == EMBEDDED_BENCHMARK
     assert benchmark_file(str(tmp_path / "x.h5")) == tmp_path / "x.h5"
-    if benchmark_module.REAL_BENCHMARK.is_file():
-        assert benchmark_file("real") == benchmark_module.REAL_BENCHMARK
+    if benchmark_names.REAL_BENCHMARK.is_file():
+        assert benchmark_file("real") == benchmark_names.REAL_BENCHMARK
     # an installation without the file says so, from Python and from the command line
     missing = {"procedural": EMBEDDED_BENCHMARK, "real": tmp_path / "absent" / "benchmark_real.h5"}
-    monkeypatch.setattr(benchmark_module, "SHIPPED_BENCHMARKS", missing)
+    monkeypatch.setattr(benchmark_names, "SHIPPED_BENCHMARKS", missing)
     with pytest.raises(BenchmarkError, match="installation lacks it"):
         benchmark_file("real")
     with pytest.raises(SystemExit) as exit_info:  # argparse refuses the argument
@@ -480,7 +473,7 @@ def test_reproduce_passes_the_mesh_root_on(
 
 
 def test_decomposition_settings_are_recorded_and_read_back() -> None:
-    from dg16m_env.real_benchmark import REAL_PARAMETERS
+    from dg16m_env.benchmark.real import REAL_PARAMETERS
 
     data = json.loads(json.dumps(REAL_PARAMETERS.to_dict()))
     assert data["decomposition"]["mcts_iterations"] == 60
@@ -578,7 +571,7 @@ def test_a_stage_past_its_budget_is_recorded_with_its_stage(tmp_path: Path) -> N
 
 def test_the_grid_leaves_out_the_slivers_it_flattens() -> None:
     from dataset_gen.objects import ConvexPart
-    from dg16m_env.benchmark import grid_parts
+    from dg16m_env.benchmark.build import grid_parts
 
     box = np.array([[x, y, z] for x in (0, 0.1) for y in (0, 0.1) for z in (0, 0.1)])
     sliver = box * [1e-5, 1, 1] + [0.2, 0, 0]  # 0.01 mm thick: one plane on a 0.05 mm grid

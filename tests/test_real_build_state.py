@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from dataset_gen.io.manifest import new_manifest, write_manifest
-from dg16m_env.benchmark import BenchmarkError
-from dg16m_env.real_build_state import restore_build_state, save_build_state
+from dg16m_env.benchmark.model import BenchmarkError
+from dg16m_env.benchmark.real_build_state import restore_build_state, save_build_state
 
 
 def _import_folder(root: Path, meshes: dict[str, bytes]) -> Path:

@@ -16,7 +16,7 @@ gym = pytest.importorskip("gymnasium")
 from gymnasium.utils.env_checker import check_env as gym_check_env  # noqa: E402
 
 import dg16m_env  # noqa: E402, F401  (registers the environments)
-from dg16m_env.benchmark import read_benchmark  # noqa: E402
+from dg16m_env.benchmark.file import read_benchmark  # noqa: E402
 from dg16m_env.evaluators import load_benchmark_ref, submission_evaluators  # noqa: E402
 
 TINY_REAL = Path(__file__).parent / "data" / "real_tiny" / "benchmark.h5"
@@ -82,7 +82,8 @@ def test_meshes_are_stored_as_exact_decimals(tmp_path: Path) -> None:
     come back bit for bit, so the mesh hashes hold; a file without the scale is refused."""
     import h5py
 
-    from dg16m_env.benchmark import BenchmarkError, write_benchmark
+    from dg16m_env.benchmark.file import write_benchmark
+    from dg16m_env.benchmark.model import BenchmarkError
 
     bench = read_benchmark(TINY_REAL)
     path = tmp_path / "again.h5"
@@ -114,7 +115,7 @@ def test_a_mesh_off_any_decimal_grid_stays_float64(tmp_path: Path) -> None:
 
     import h5py
 
-    from dg16m_env.benchmark import write_benchmark
+    from dg16m_env.benchmark.file import write_benchmark
 
     bench = read_benchmark(TINY_REAL)
     obj = bench.objects[0]

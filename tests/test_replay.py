@@ -1,4 +1,4 @@
-"""Replaying a trial (dg16m_env.replay) and ``dg16m sim``: stepped trials agree with the C rollout,
+"""Replaying a trial (dg16m_env.physics.replay) and ``dg16m sim``: stepped trials agree with the C rollout,
 frames are pictures of the requested size, strips and GIFs are written, the CLI reports errors."""
 
 from __future__ import annotations
@@ -17,17 +17,15 @@ from PIL import Image
 
 import dataset_gen.cli
 from dataset_gen.errors import Dg16mError
-from dg16m_env import replay as replay_module
-from dg16m_env.benchmark import (
-    EMBEDDED_BENCHMARK,
-    Benchmark,
-    BenchmarkParameters,
-    build_benchmark,
-    procedural_benchmark_sources,
-    read_benchmark,
-)
-from dg16m_env.labels import PerturbationSpec
-from dg16m_env.replay import (
+from dg16m_env.benchmark.build import build_benchmark
+from dg16m_env.benchmark.file import read_benchmark
+from dg16m_env.benchmark.model import Benchmark, BenchmarkParameters
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
+from dg16m_env.benchmark.sources import procedural_benchmark_sources
+from dg16m_env.cli.sim import register
+from dg16m_env.physics import replay as replay_module
+from dg16m_env.physics.labels import PerturbationSpec
+from dg16m_env.physics.replay import (
     RenderError,
     ReplayError,
     frame_steps,
@@ -38,9 +36,9 @@ from dg16m_env.replay import (
     write_gif,
     write_strip,
 )
-from dg16m_env.scene import Scene, compile_scene
-from dg16m_env.sim_command import register
-from dg16m_env.trial import TrialStatus, run_trials, simulate
+from dg16m_env.physics.scene import Scene, compile_scene
+from dg16m_env.physics.trial import run_trials
+from dg16m_env.physics.trial_protocol import TrialStatus, simulate
 
 
 @pytest.fixture(scope="module")
@@ -220,7 +218,7 @@ def test_strip_and_gif_are_written(tmp_path: Path, monkeypatch: pytest.MonkeyPat
 def with_sim() -> None:
     """``dg16m sim`` comes from dg16m_env's entry point (the package must be installed)."""
     values = [plugin.value for plugin in dataset_gen.cli.command_plugins()]
-    assert "dg16m_env.sim_command:register" in values, values
+    assert "dg16m_env.cli.sim:register" in values, values
 
 
 @pytest.mark.parametrize("argv", [["sim"], ["sim", "replay"], ["sim", "run"]])
@@ -456,8 +454,8 @@ def test_cli_run_on_the_release_airplane_explains_the_invalid_trials(
 def test_the_default_view_shows_both_hands(scene: Scene, bench: Benchmark) -> None:
     """The camera looks across the line between the hands (neither behind the other), from the
     hands' side, with both grasp centres inside its field of view."""
-    from dg16m_env.replay import DEFAULT_ELEVATION, hands_view
-    from dg16m_env.trial import grasp_centres
+    from dg16m_env.physics.replay import DEFAULT_ELEVATION, hands_view
+    from dg16m_env.physics.trial_measures import grasp_centres
 
     fovy = float(scene.model.vis.global_.fovy)
     for row in range(bench.n):

@@ -63,8 +63,8 @@ def test_hand_line_far_from_the_centre_of_mass_is_not_robust_though_it_passes_th
 
 def test_protocol_loads_are_the_trial_schedule() -> None:
     pytest.importorskip("mujoco")
-    from dg16m_env.scene import compile_scene
-    from dg16m_env.trial import PHASES, TrialProtocol, schedule
+    from dg16m_env.physics.scene import compile_scene
+    from dg16m_env.physics.trial_protocol import PHASES, TrialProtocol, schedule
 
     assert PHASES[1:] == LOAD_NAMES
     obj = make_procedural_object("crate", 3)

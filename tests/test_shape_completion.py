@@ -25,10 +25,11 @@ from baselines.shape_completion import (
 )
 from dataset_gen.cli import main
 from dataset_gen.gripper import PANDA
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.evaluators import load_benchmark_ref
-from dg16m_env.observation import object_observation, surface_points
-from dg16m_env.submission import read_submission
+from dg16m_env.subjects.observation import object_observation, surface_points
+from dg16m_env.subjects.submission_reader import read_submission
 
 TOLERANCE = 0.015  # m: a point "on" the true surface
 

@@ -18,18 +18,14 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 import dg16m_env  # noqa: F401  (registers the environments)
 from dataset_gen.cli import main as cli_main
 from dataset_gen.hashing import file_sha256
-from dg16m_env.benchmark import (
-    REAL_BENCHMARK,
-    SOURCES,
-    Benchmark,
-    benchmark_file,
-    read_benchmark,
-)
+from dg16m_env.benchmark.file import read_benchmark
+from dg16m_env.benchmark.model import SOURCES, Benchmark
+from dg16m_env.benchmark.names import REAL_BENCHMARK, benchmark_file
+from dg16m_env.benchmark.real import REAL_ATTRIBUTION, REAL_LIMITS, REAL_SPLIT_FILE
 from dg16m_env.envs.dual_grasp_pose import DualGraspPoseEnv
 from dg16m_env.envs.spaces import action_from_poses
 from dg16m_env.evaluators import load_benchmark_ref, make
-from dg16m_env.real_benchmark import REAL_ATTRIBUTION, REAL_LIMITS, REAL_SPLIT_FILE
-from dg16m_env.submission import write_submission
+from dg16m_env.subjects.submission_writer import write_submission
 
 pytestmark = pytest.mark.skipif(
     not REAL_BENCHMARK.is_file(), reason=f"the real benchmark is not shipped ({REAL_BENCHMARK})"

@@ -32,8 +32,10 @@ from planks import (
 from dataset_gen.errors import Dg16mError
 from dataset_gen.gripper import PANDA
 from dataset_gen.objects import make_object
-from dg16m_env.scene import Scene, SceneError, SceneParameters, compile_scene
-from dg16m_env.trial import (
+from dg16m_env.physics.scene import Scene, SceneError, SceneParameters, compile_scene
+from dg16m_env.physics.trial import run_trials
+from dg16m_env.physics.trial_measures import analyse, grasp_centres
+from dg16m_env.physics.trial_protocol import (
     DIRECTIONS,
     PHASES,
     InvalidReason,
@@ -41,9 +43,6 @@ from dg16m_env.trial import (
     TrialProtocol,
     TrialResults,
     TrialStatus,
-    analyse,
-    grasp_centres,
-    run_trials,
     schedule,
     simulate,
 )
@@ -694,7 +693,7 @@ def test_procedural_benchmark_object_runs_without_instability() -> None:
 def test_quaternions_round_trip_through_the_one_conversion() -> None:
     from scipy.spatial.transform import Rotation
 
-    from dg16m_env.scene import quat_from_matrix, quat_to_matrix
+    from dg16m_env.physics.scene import quat_from_matrix, quat_to_matrix
 
     rotations = Rotation.random(12, random_state=0).as_matrix().reshape(3, 4, 3, 3)
     quats = quat_from_matrix(rotations)
@@ -734,7 +733,7 @@ def test_results_print_short_and_count_invalid_reasons(short_scene: Scene) -> No
 
 
 def test_open_hand_penetration_names_the_part(short_scene: Scene) -> None:
-    from dg16m_env.trial import HAND_PARTS, open_hand_penetration
+    from dg16m_env.physics.trial_protocol import HAND_PARTS, open_hand_penetration
 
     good0, good1 = HOLD_FROM_ABOVE
     depth = open_hand_penetration(

@@ -1,4 +1,4 @@
-"""Tests of dg16m_env.submission: writing, validating and reading submission files.
+"""Tests of dg16m_env.subjects.submission: writing, validating and reading submission files.
 
 Every bad file is built at test time in ``tmp_path`` with h5py directly. Each must be refused by
 :func:`read_submission` with the specific problem (place and message), and neither it nor any
@@ -21,8 +21,8 @@ import pytest
 
 from dataset_gen.hashing import file_sha256
 from dataset_gen.io import DualGraspSet, read_dg16m, write_dg16m
-from dg16m_env.benchmark import retarget_poses
-from dg16m_env.submission import (
+from dg16m_env.benchmark.sources import retarget_poses
+from dg16m_env.subjects.submission import (
     EMBEDDED,
     FORMAT,
     SCHEMA_VERSION,
@@ -31,11 +31,9 @@ from dg16m_env.submission import (
     SubmissionError,
     SubmissionInvalid,
     SubmissionLimits,
-    read_submission,
-    submission_from_dg16m,
-    validate_submission,
-    write_submission,
 )
+from dg16m_env.subjects.submission_reader import read_submission, validate_submission
+from dg16m_env.subjects.submission_writer import submission_from_dg16m, write_submission
 
 IDS = ("mug-1", "table 1000000 (é)")
 """Benchmark object ids of the tests (one with odd characters that HDF5 names allow)."""
@@ -870,8 +868,9 @@ def test_a_partial_submission_for_the_shipped_benchmark_says_how_to_score_a_few(
 ) -> None:
     import warnings
 
-    from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark
-    from dg16m_env.submission import PartialSubmissionWarning
+    from dg16m_env.benchmark.file import read_benchmark
+    from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
+    from dg16m_env.subjects.submission_writer import PartialSubmissionWarning
 
     ids = [o.object_id for o in read_benchmark(EMBEDDED_BENCHMARK).objects]
     with pytest.warns(PartialSubmissionWarning, match=r"all 300 objects.*found 3.*--limit N"):

@@ -4,7 +4,8 @@ pairing, on FCE and on GSR (20 objects, 5 dual grasps each, 2 perturbed trials).
 from __future__ import annotations
 
 from baselines.reference_submissions import write_reference_submissions
-from dg16m_env.benchmark import EMBEDDED_BENCHMARK, read_benchmark, write_benchmark
+from dg16m_env.benchmark.file import read_benchmark, write_benchmark
+from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.evaluators import load_benchmark_ref, make
 
 

@@ -27,25 +27,23 @@ from planks import (
 )
 
 from dataset_gen.cli import main
-from dg16m_env import simulator as simulator_module
-from dg16m_env.scene import Scene, compile_scene
-from dg16m_env.simulator import (
+from dg16m_env.physics import simulator as simulator_module
+from dg16m_env.physics.scene import Scene, compile_scene
+from dg16m_env.physics.simulator import (
     Simulator,
     SimulatorError,
     add_simulator_arguments,
     check_simulator,
     simulator_from_args,
 )
-from dg16m_env.trial import (
+from dg16m_env.physics.trial import run_trials
+from dg16m_env.physics.trial_measures import body_points, grasp_centres, object_states
+from dg16m_env.physics.trial_protocol import (
     STATE_SPEC,
     InvalidReason,
     TrialProtocol,
     TrialResults,
     TrialStatus,
-    body_points,
-    grasp_centres,
-    object_states,
-    run_trials,
     trial_control_vectors,
 )
 
@@ -236,8 +234,9 @@ def test_a_world_that_overflows_its_contacts_is_unstable_not_dropped(short_scene
 def test_device_measures_match_measure_steps_on_the_same_states(short_scene: Scene) -> None:
     """The float32 kernel and the float64 reference measure the same states alike: C MuJoCo's
     trajectory of a hold, every 40th step after close, measured from the end of close."""
-    from dg16m_env.trial import measure_steps, simulate
-    from dg16m_env.warp_trials import MEASURE_COLUMN, WarpRunner
+    from dg16m_env.physics.trial_measures import measure_steps
+    from dg16m_env.physics.trial_protocol import simulate
+    from dg16m_env.physics.warp_trials import MEASURE_COLUMN, WarpRunner
 
     protocol = TrialProtocol()
     grasps = np.stack([HOLD_FROM_ABOVE, HOLD_FROM_SIDE])
@@ -305,14 +304,11 @@ def test_device_measures_match_measure_steps_on_the_same_states(short_scene: Sce
 @pytest.mark.warp
 @requires_warp
 def test_a_warp_build_names_its_engine_and_cannot_resume_on_another(tmp_path) -> None:
-    from dg16m_env.benchmark import (
-        BenchmarkError,
-        BenchmarkParameters,
-        build_benchmark,
-        procedural_benchmark_sources,
-        read_benchmark,
-    )
-    from dg16m_env.labels import PerturbationSpec
+    from dg16m_env.benchmark.build import build_benchmark
+    from dg16m_env.benchmark.file import read_benchmark
+    from dg16m_env.benchmark.model import BenchmarkError, BenchmarkParameters
+    from dg16m_env.benchmark.sources import procedural_benchmark_sources
+    from dg16m_env.physics.labels import PerturbationSpec
 
     small = BenchmarkParameters(
         n_grasps=40,

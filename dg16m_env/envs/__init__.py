@@ -10,6 +10,11 @@ Ids (each documented in its module, with a version history):
 * ``dg16m_env/DualGraspLift-v0`` (:mod:`.dual_grasp_lift`): closed loop: two floating Panda
   hands lift an object from a table.
 
+The Lift task's reward is :mod:`.lift_reward` and its scripted expert :mod:`.lift_expert`;
+:mod:`.common`, :mod:`.objects` and :mod:`.spaces` serve the tasks. Layer rule: modules here
+import the evaluators, subjects, benchmark and physics layers below them, never
+:mod:`dg16m_env.cli`.
+
 ``gym.make("dg16m_env/DualGraspSelect-v0")`` after ``import dg16m_env``; from a fresh
 interpreter ``gym.make("dg16m_env:DualGraspSelect-v0")`` imports the package first. Gymnasium
 looks that form up without the namespace, so every id is also registered under its bare name

@@ -59,24 +59,24 @@ from gymnasium.vector import AutoresetMode
 from dataset_gen.checks import check_integer
 from dataset_gen.errors import Dg16mError
 from dataset_gen.objects import GraspObject
-from dg16m_env.evaluators.context import BenchmarkRef
+from dg16m_env.benchmark.ref import BenchmarkRef
 from dg16m_env.evaluators.fce import REASONS, fce_verdicts
-from dg16m_env.labels import GRAVITY_PHASE, LEVELS, PerturbationSpec, perturb_poses
-from dg16m_env.replay import DISTANCE_FACTOR, check_size, default_camera
-from dg16m_env.replay import render_model as restyled_model
-from dg16m_env.scene import Scene, quat_from_matrix
-from dg16m_env.trial import (
+from dg16m_env.physics.cameras import CameraPose, DepthCameras, RendererSlot, offscreen_renderer
+from dg16m_env.physics.labels import GRAVITY_PHASE, LEVELS, PerturbationSpec, perturb_poses
+from dg16m_env.physics.replay import DISTANCE_FACTOR, check_size, default_camera
+from dg16m_env.physics.replay import render_model as restyled_model
+from dg16m_env.physics.scene import Scene, quat_from_matrix
+from dg16m_env.physics.trial import run_trials
+from dg16m_env.physics.trial_measures import grasp_centres
+from dg16m_env.physics.trial_protocol import (
     STATE_SPEC,
     InvalidReason,
     TrialProtocol,
     TrialResults,
     TrialStatus,
-    grasp_centres,
     initial_state,
-    run_trials,
 )
 
-from .cameras import CameraPose, DepthCameras, RendererSlot, offscreen_renderer
 from .objects import BenchmarkObjects
 from .spaces import POSE_SIZE
 
@@ -257,7 +257,7 @@ def perturbed_poses(
 ) -> np.ndarray:
     """(2, 4, 4) ``poses`` with the benchmark's pose noise: each hand turned by exactly
     ``spec.rotation_deg`` about a random axis through its grasp centre and moved by exactly
-    ``spec.translation`` in a random direction (:func:`dg16m_env.labels.perturb_poses`, one
+    ``spec.translation`` in a random direction (:func:`dg16m_env.physics.labels.perturb_poses`, one
     perturbation, its seed drawn from ``rng``)."""
     seed = np.array([rng.integers(0, np.iinfo(np.int64).max)], dtype=np.int64)
     one = PerturbationSpec(
@@ -270,7 +270,7 @@ def perturbed_poses(
 def held(results: TrialResults, level: str, row: int = 0) -> bool:
     """Whether trial ``row`` held at ``level`` (``"full"``: through every disturbance;
     ``"gravity"``: it ran and nothing broke before the end of *gravity*), as the benchmark's
-    labels count it (:class:`dg16m_env.labels.GraspLabels`)."""
+    labels count it (:class:`dg16m_env.physics.labels.GraspLabels`)."""
     status = int(results.status[row])
     if level == "full":
         return status == TrialStatus.SUCCESS
@@ -314,7 +314,7 @@ class Outcome:
 
     Attributes:
         success: the reward is 1.
-        status: the trial's :class:`~dg16m_env.trial.TrialStatus` name (lower case),
+        status: the trial's :class:`~dg16m_env.physics.trial.TrialStatus` name (lower case),
             :data:`STATUS_NOT_RUN` or :data:`STATUS_LABEL`.
         results: the trial's results (None when none ran).
         invalid_reason: why no trial (or an invalid one) ran, or None.
@@ -351,7 +351,7 @@ class Outcome:
 def trial_info(object_id: str, outcome: Outcome) -> dict[str, Any]:
     """The ``info`` of a step: ``success`` and ``is_success`` (bool), ``object_id``,
     ``fc_passed``, ``fc_reason``, ``slip_m`` (largest slip at the hands' grasp centres, m),
-    ``rotation_deg``, ``failing_phase`` (a :data:`~dg16m_env.trial.PHASES` name),
+    ``rotation_deg``, ``failing_phase`` (a :data:`~dg16m_env.physics.trial.PHASES` name),
     ``invalid_reason``, ``status``; entries that do not apply are None (never NaN, so equal
     steps give equal infos)."""
     results = outcome.results
@@ -397,13 +397,13 @@ def hands_away(centre: np.ndarray, radius: float) -> np.ndarray:
 
 class SceneRenderer:
     """Offscreen RGB pictures of a scene: the object at rest, the open hands at given poses
-    (the restyled model of :func:`dg16m_env.replay.render_model`, the free camera of
-    :func:`dg16m_env.replay.default_camera`, moved back to keep the hands in view). The renderer
+    (the restyled model of :func:`dg16m_env.physics.replay.render_model`, the free camera of
+    :func:`dg16m_env.physics.replay.default_camera`, moved back to keep the hands in view). The renderer
     of the last scene is kept.
 
     Raises:
         RenderError: no offscreen OpenGL context, EGL or osmesa
-            (:func:`~dg16m_env.envs.cameras.offscreen_renderer`).
+            (:func:`~dg16m_env.physics.cameras.offscreen_renderer`).
     """
 
     def __init__(self, width: int = 480, height: int = 360) -> None:

@@ -8,7 +8,7 @@ it and clear of it. Each control step moves each hand by a bounded translation a
 opens or closes its fingers. The episode succeeds when the object's centre of mass has been
 lifted at least ``lift_height`` above its resting height and held there for ``hold_time`` while
 both hands grasp it without slipping. Physics (the MJCF model) is in
-:mod:`dg16m_env.envs.lift_scene`; this module is the task.
+:mod:`dg16m_env.physics.lift_scene`; this module is the task.
 
 Optionally a *target dual grasp* of the benchmark (two hand poses in the object frame) is put in
 the observation, which is what a grasp-conditioned policy needs: ``target_grasp="benchmark"`` or
@@ -17,7 +17,7 @@ the observation, which is what a grasp-conditioned policy needs: ``target_grasp=
 Frames and units
 ----------------
 SI units (m, s, rad, N). World = table frame: ``z`` up, the table top is the plane ``z = 0``,
-the table spans ``[-1, 1] x [-1, 1]`` m (:data:`~dg16m_env.envs.lift_scene.TABLE_HALF_SIZE`).
+the table spans ``[-1, 1] x [-1, 1]`` m (:data:`~dg16m_env.physics.lift_scene.TABLE_HALF_SIZE`).
 Hand frames are dg16m grasp frames (:mod:`dataset_gen.gripper`): ``+x`` closing axis, ``+y``
 approach axis, origin at the flange; the *grasp centre* of a hand is the point between its pads,
 ``contact_depth`` (0.1034 m) along ``+y``. A 6D rotation is the first two columns of the rotation
@@ -27,7 +27,7 @@ Control
 -------
 Control rate :data:`CONTROL_HZ` = 20 Hz: each step runs ``0.05 s / timestep`` physics steps at
 the benchmark's timestep (2 ms: 25 substeps). The hands are commanded through mocap targets
-(standing for arms) to which they are welded (see :mod:`~dg16m_env.envs.lift_scene`); within a
+(standing for arms) to which they are welded (see :mod:`~dg16m_env.physics.lift_scene`); within a
 step the targets move linearly (grasp centre) and at a constant angular rate (rotation) from
 their pose to the new one.
 
@@ -191,7 +191,7 @@ from __future__ import annotations
 import math
 import os
 from collections import OrderedDict
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -201,9 +201,23 @@ import numpy as np
 from gymnasium import spaces
 
 from dataset_gen.checks import check_number
-from dataset_gen.gripper import PANDA
-from dataset_gen.objects import is_rigid
-from dg16m_env.envs.lift_scene import (
+from dg16m_env._compat import moved_names
+from dg16m_env.benchmark.ref import BenchmarkRef
+from dg16m_env.envs.lift_reward import jaw_angle, reward_terms
+from dg16m_env.envs.lift_spaces import (
+    ACTION_SIZE,
+    MAX_ROTATION,
+    MAX_TRANSLATION,
+    MOTION_COMPONENTS,
+    OBS_LAYOUT,
+    OBS_SIZE,
+    OBS_SLICES,
+    _right_matrix,
+)
+from dg16m_env.envs.lift_targets import check_reset_options, parse_target_option
+from dg16m_env.envs.objects import CACHE_SIZE, BenchmarkObjects
+from dg16m_env.envs.spaces import rotation_to_6d
+from dg16m_env.physics.lift_scene import (
     TABLE_HALF_SIZE,
     LiftScene,
     compile_lift_scene,
@@ -212,19 +226,10 @@ from dg16m_env.envs.lift_scene import (
     part_points,
     stable_rest_poses,
 )
-from dg16m_env.envs.objects import CACHE_SIZE, BenchmarkObjects
-from dg16m_env.envs.spaces import rotation_to_6d
-from dg16m_env.evaluators.context import BenchmarkRef
-from dg16m_env.scene import quat_from_matrix, quat_to_matrix
+from dg16m_env.physics.scene import quat_from_matrix, quat_to_matrix
 
 CONTROL_HZ = 20
 """Control steps per second (each runs ``1 / (CONTROL_HZ * timestep)`` physics steps)."""
-
-MAX_TRANSLATION = 0.02
-"""Largest translation of a hand's grasp centre per step and axis (m)."""
-
-MAX_ROTATION = 0.1
-"""Largest rotation-vector component of a hand per step (rad)."""
 
 TABLE_MARGIN = 0.01
 """No point of a hand is commanded below this height above the table top (m)."""
@@ -261,97 +266,8 @@ SETTLE_TIME = 0.2
 
 TARGET_MIN_P = 0.5
 """Benchmark target rows need ``p("full") >=`` this (and a force-closure pass)."""
-
-PREGRASP_DISTANCE = 0.09
-"""Pre-grasp distance of :class:`ScriptedLiftPolicy` back along the approach axis (m)."""
-
-REWARD_WEIGHTS: dict[str, float] = {
-    "reach": 1.0,
-    "align": 0.1,
-    "grasp": 0.25,
-    "lift": 1.0,
-    "hold": 1.0,
-    "success": 10.0,
-    "failure": 10.0,
-    "action": 0.01,
-}
-"""Weights of the reward terms (see the module docstring for their signs)."""
-
-POSITION_BOUND = 5.0
-"""Bound of position-like observations (m)."""
-
-VELOCITY_BOUND = 50.0
-"""Bound of velocity observations (m/s, rad/s)."""
-
-_LAYOUT: tuple[tuple[str, int, float, float], ...] = (
-    ("object_position", 3, -POSITION_BOUND, POSITION_BOUND),
-    ("object_rotation", 6, -1.0, 1.0),
-    ("object_linear_velocity", 3, -VELOCITY_BOUND, VELOCITY_BOUND),
-    ("object_angular_velocity", 3, -VELOCITY_BOUND, VELOCITY_BOUND),
-    ("hand_poses", 18, -POSITION_BOUND, POSITION_BOUND),
-    ("finger_openings", 2, 0.0, 1.0),
-    ("grasp_centres", 6, -POSITION_BOUND, POSITION_BOUND),
-    ("finger_contacts", 4, 0.0, 1.0),
-    ("object_size", 3, 0.0, POSITION_BOUND),
-    ("object_box_centre", 3, -POSITION_BOUND, POSITION_BOUND),
-    ("lift", 1, -POSITION_BOUND, POSITION_BOUND),
-    ("target_poses", 18, -POSITION_BOUND, POSITION_BOUND),
-    ("target_flag", 1, 0.0, 1.0),
-)
-
-
-def _slices() -> dict[str, slice]:
-    out, start = {}, 0
-    for name, size, _, _ in _LAYOUT:
-        out[name] = slice(start, start + size)
-        start += size
-    return out
-
-
-OBS_SLICES: dict[str, slice] = _slices()
-"""Name -> slice of the observation vector (see the module docstring)."""
-
-OBS_SIZE = sum(size for _, size, _, _ in _LAYOUT)
-"""Length of the observation vector (71)."""
-
-ACTION_SIZE = 14
-"""Length of the action vector: 7 per hand."""
-
-_MOTION = np.r_[0:6, 7:13]  # the action's motion components (not the finger forces)
 TERMINATIONS = ("success", "off_table", "out_of_bounds", "unstable")
 """The values of ``info["termination"]`` when an episode terminates (``""`` while it runs)."""
-
-
-# --------------------------------------------------------------------------------------------
-# Small rotation helpers (numpy, no allocation-heavy libraries in the step loop)
-# --------------------------------------------------------------------------------------------
-
-
-def _right_matrix(q: np.ndarray) -> np.ndarray:
-    """(4, 4) matrix ``M`` with ``p ⊗ q = M p`` for quaternions (w, x, y, z)."""
-    w, x, y, z = q
-    return np.array([[w, -x, -y, -z], [x, w, z, -y], [y, -z, w, x], [z, y, -x, w]])
-
-
-def rotation_vector(rotations: np.ndarray) -> np.ndarray:
-    """(..., 3) rotation vectors (axis * angle, rad) of (..., 3, 3) rotations."""
-    rotations = np.asarray(rotations, dtype=np.float64)
-    out = np.empty((*rotations.shape[:-2], 3))
-    quat = np.empty(4)
-    for index in np.ndindex(rotations.shape[:-2]):
-        mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rotations[index]).ravel())
-        mujoco.mju_quat2Vel(out[index], quat, 1.0)
-    return out
-
-
-def jaw_angle(rotations: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    """(...) angle (rad) between hand rotations and target rotations (..., 3, 3), the smaller of
-    the target and the target turned by pi about its approach axis (the same parallel grasp)."""
-    relative = np.einsum("...ji,...jk->...ik", targets, rotations)  # R_t^T R
-    trace = relative[..., 0, 0] + relative[..., 1, 1] + relative[..., 2, 2]
-    flipped = -relative[..., 0, 0] + relative[..., 1, 1] - relative[..., 2, 2]
-    best = np.maximum(trace, flipped)
-    return np.arccos(np.clip((best - 1.0) / 2.0, -1.0, 1.0))
 
 
 # --------------------------------------------------------------------------------------------
@@ -372,17 +288,6 @@ class _LiftObject:
     box_high: np.ndarray
     target_rows: np.ndarray  # benchmark rows eligible as targets (before the table rule)
     feasible: dict[int, np.ndarray] = field(default_factory=dict)  # pose -> rows above table
-
-
-def _check_options(options: Mapping[str, Any] | None) -> dict[str, Any]:
-    if options is None:
-        return {}
-    if not isinstance(options, Mapping):
-        raise ValueError(f"options: expected a mapping or None, found {type(options).__name__}")
-    unknown = sorted(set(options) - {"object_id", "target_grasp"})
-    if unknown:
-        raise ValueError(f"options: expected keys 'object_id', 'target_grasp', found {unknown}")
-    return dict(options)
 
 
 class DualGraspLiftEnv(gymnasium.Env[np.ndarray, np.ndarray]):
@@ -410,7 +315,7 @@ class DualGraspLiftEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                 f"render_mode: expected None or one of {self.metadata['render_modes']}, "
                 f"found {render_mode!r}"
             )
-        from dg16m_env.replay import ReplayError, check_size
+        from dg16m_env.physics.replay import ReplayError, check_size
 
         try:
             self.width, self.height = check_size(width, height)
@@ -434,8 +339,8 @@ class DualGraspLiftEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._bench = self.objects.ref.benchmark
         self._p_full = self._bench.p("full")
 
-        low = np.concatenate([np.full(size, lo) for _, size, lo, _ in _LAYOUT])
-        high = np.concatenate([np.full(size, hi) for _, size, _, hi in _LAYOUT])
+        low = np.concatenate([np.full(size, lo) for _, size, lo, _ in OBS_LAYOUT])
+        high = np.concatenate([np.full(size, hi) for _, size, _, hi in OBS_LAYOUT])
         self.observation_space = spaces.Box(low.astype(np.float32), high.astype(np.float32))
         self.action_space = spaces.Box(-1.0, 1.0, (ACTION_SIZE,), dtype=np.float32)
         self._obs_low, self._obs_high = self.observation_space.low, self.observation_space.high
@@ -516,41 +421,6 @@ class DualGraspLiftEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     # Target grasps
     # ----------------------------------------------------------------------------------------
 
-    def _parse_target(self, value: Any, object_id: str | None) -> tuple[Any, str | None]:
-        """(kind, object id): kind is None, "benchmark", a row (int) or (2, 4, 4) poses."""
-        if value is None or (isinstance(value, str) and value == "benchmark"):
-            return value, object_id
-        if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
-            row = int(value)
-            if not 0 <= row < self._bench.n:
-                raise ValueError(
-                    f"options['target_grasp']: expected a benchmark row in [0, {self._bench.n}), "
-                    f"found {row}"
-                )
-            owner = self._bench.objects[int(self._bench.object_index[row])].object_id
-            if object_id is not None and object_id != owner:
-                raise ValueError(
-                    f"options['target_grasp']: expected a row of object {object_id!r}, found "
-                    f"row {row} of {owner!r}"
-                )
-            return row, owner
-        if isinstance(value, str):
-            raise ValueError(
-                "options['target_grasp']: expected None, 'benchmark', a row index or (2, 4, 4) "
-                f"hand poses, found {value!r}"
-            )
-        try:
-            poses = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError):
-            poses = np.zeros(0)
-        if poses.shape != (2, 4, 4) or not bool(np.all(is_rigid(poses, atol=1e-5))):
-            raise ValueError(
-                "options['target_grasp']: expected None, 'benchmark', a row index or (2, 4, 4) "
-                f"finite rigid hand poses (gripper -> object frame, m), found "
-                f"{poses.shape if poses.size else type(value).__name__}"
-            )
-        return poses.copy(), object_id
-
     def _choose(
         self, kind: Any, object_id: str | None
     ) -> tuple[str, _LiftObject, int, np.ndarray | None, int, bool]:
@@ -594,12 +464,12 @@ class DualGraspLiftEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        opts = _check_options(options)
+        opts = check_reset_options(options)
         requested = opts.get("object_id")
         if requested is not None and not isinstance(requested, str):
             raise ValueError(f"options['object_id']: expected a string, found {requested!r}")
         target = opts.get("target_grasp", self.target_mode)
-        kind, requested = self._parse_target(target, requested)
+        kind, requested = parse_target_option(target, requested, self._bench)
         self._reset_state()
         object_id, item, pose_index, grasp, row, above = self._choose(kind, requested)
         self.object_id, self._current = object_id, item
@@ -830,34 +700,33 @@ class DualGraspLiftEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             termination = "out_of_bounds"
         failure = termination not in ("", "success")
 
-        # Reward terms (module docstring), summed in this order.
-        weights = REWARD_WEIGHTS
+        # Reward terms (module docstring, :mod:`dg16m_env.envs.lift_reward`).
         if self._grasp is not None:
             goal = self._target_world(obj_pos, obj_rot)
             depth = scene.gripper.contact_depth
             goal_centres = goal[:, :3, 3] + depth * goal[:, :3, 1]
             distance = np.linalg.norm(centres - goal_centres, axis=1)
             hands = data.xmat[scene.hand_bodies].reshape(2, 3, 3)
-            align = -weights["align"] * float(jaw_angle(hands, goal[:, :3, :3]).mean())
+            angle: float | None = float(jaw_angle(hands, goal[:, :3, :3]).mean())
         else:
             local = (centres - obj_pos) @ obj_rot
             nearest = np.clip(local, self._current.box_low, self._current.box_high)
             distance = np.linalg.norm(local - nearest, axis=1)
-            align = 0.0
-        terms = {
-            "reach": -weights["reach"] * float(distance.mean()),
-            "align": align,
-            "grasp": weights["grasp"] * float(grasping.sum()),
-            "lift": weights["lift"] * min(max(lift / self.lift_height, 0.0), 1.0) if both else 0.0,
-            "hold": weights["hold"] if holding else 0.0,
-            "success": weights["success"] if success else 0.0,
-            "failure": -weights["failure"] if failure else 0.0,
-            "action": -weights["action"] * float(np.mean(values[_MOTION] ** 2)),
-        }
+            angle = None
+        terms = reward_terms(
+            reach_distance=float(distance.mean()),
+            jaw_angle=angle,
+            hands_grasping=int(grasping.sum()),
+            both_grasping=both,
+            lift=lift,
+            lift_height=self.lift_height,
+            holding=holding,
+            success=success,
+            failure=failure,
+            motion=values[MOTION_COMPONENTS],
+            unstable=unstable,
+        )
         reward = float(sum(terms.values()))
-        if unstable:  # MuJoCo reset the state: the observation is the reset state's, finite
-            terms = dict.fromkeys(terms, 0.0) | {"failure": -weights["failure"]}
-            reward = float(sum(terms.values()))
         observation = self._observation()
         info = {
             "object_id": self.object_id,
@@ -933,7 +802,7 @@ class DualGraspLiftEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             return None
         if self._current is None:
             raise RuntimeError("render: expected reset() before render(), found no episode")
-        from dg16m_env.replay import make_renderer
+        from dg16m_env.physics.replay import make_renderer
 
         scene, data = self._current.scene, self._current.data
         if self._renderer is None or self._renderer_model is not scene.model:
@@ -965,168 +834,6 @@ class DualGraspLiftEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         super().close()
 
 
-# --------------------------------------------------------------------------------------------
-# A scripted reference policy
-# --------------------------------------------------------------------------------------------
-
-
-class ScriptedLiftPolicy:
-    """A scripted grasp-and-lift policy for :class:`DualGraspLiftEnv` with a target grasp, from
-    the observation alone (so it works through wrappers): the reference solution the tests and
-    ``bench/env_lift.py`` run, and a demonstration that the task is solvable.
-
-    Each hand's grasp centre follows waypoints at full speed (the action bounds): up to a safe
-    height above the object (its top bound plus the hand's reach), over to a point
-    ``FAR_DISTANCE`` back along the target's approach axis while turning to the target rotation,
-    down to it, in to the pre-grasp (``PREGRASP_DISTANCE`` back), in to the grasp (waypoints
-    are raised to where the env lets a hand go above the table). When both hands are there the
-    fingers close (``close_steps`` steps), then both hands rise together by ``lift`` m over
-    ``lift_steps`` steps and hold still with the fingers closed.
-
-    The path is not planned against the object's shape: a hand can run into a part of the object
-    on its way (about one episode in ten on the shipped benchmark knocks the object over or away),
-    and some grasps slip or swing out while lifted. With ``target_grasp="benchmark"`` it succeeds
-    in about 80 % of episodes of the shipped benchmark.
-
-    Args:
-        lift: how far the hands rise (m; default 0.2: an object hanging from two grasps swings
-            about the line joining the hands and its centre of mass settles below where it was
-            lifted, so the hands rise more than ``lift_height``).
-        close_steps: control steps to close the fingers before lifting.
-        lift_steps: control steps of the rise (a half-cosine profile: smooth start and stop).
-    """
-
-    FAR_DISTANCE = 0.25
-    CLEARANCE = 0.05
-    POSITION_TOLERANCE = 0.003
-    ANGLE_TOLERANCE = 0.03
-
-    def __init__(self, lift: float = 0.2, close_steps: int = 12, lift_steps: int = 20) -> None:
-        self.lift = lift
-        self.close_steps = close_steps
-        self.lift_steps = lift_steps
-        self.depth = PANDA.contact_depth
-        self._hand_points = hand_points(PANDA)
-        self.reset()
-
-    def reset(self) -> None:
-        """Forget the episode (call at every env reset)."""
-        self.phase = "approach"
-        self.waypoints: list[list[tuple[np.ndarray, np.ndarray | None]]] | None = None
-        self.progress = [0, 0]
-        self.count = 0
-        self.lift_goal: np.ndarray | None = None
-        self.lift_rot: np.ndarray | None = None
-
-    @staticmethod
-    def _poses(flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        rows = flat.reshape(-1, 9).astype(np.float64)
-        a = rows[:, 3:6] / np.linalg.norm(rows[:, 3:6], axis=1, keepdims=True)
-        b = rows[:, 6:9] - np.sum(rows[:, 6:9] * a, axis=1, keepdims=True) * a
-        b /= np.linalg.norm(b, axis=1, keepdims=True)
-        rot = np.stack([a, b, np.cross(a, b)], axis=-1)
-        return rows[:, :3], rot
-
-    def _plan(self, obs: np.ndarray) -> None:
-        s = OBS_SLICES
-        hand_pos, hand_rot = self._poses(obs[s["hand_poses"]])
-        goal_pos, goal_rot = self._poses(obs[s["target_poses"]])
-        centres = hand_pos + self.depth * hand_rot[:, :, 1]
-        goal = goal_pos + self.depth * goal_rot[:, :, 1]
-        # The object's top: its bounding box (object frame) at the object's pose.
-        obj_pos, obj_rot = self._poses(
-            np.concatenate([obs[s["object_position"]], obs[s["object_rotation"]]])
-        )
-        half = 0.5 * obs[s["object_size"]].astype(np.float64)
-        centre = obs[s["object_box_centre"]].astype(np.float64)
-        up = obj_rot[0][2]  # world z in the object frame
-        top = float(obj_pos[0, 2] + up @ centre + np.abs(up) @ half)
-        safe = top + HAND_REACH + self.CLEARANCE
-        self.waypoints = []
-        for k in range(2):
-            approach = goal_rot[k][:, 1]
-            far = goal[k] - self.FAR_DISTANCE * approach
-            high = max(safe, float(far[2]))
-            # The env keeps hands above the table: so do the waypoints (an approach from below
-            # ends on the table's margin instead of under it).
-            lowest = float((goal_rot[k][2] @ (self._hand_points - [0.0, self.depth, 0.0]).T).min())
-            floor = TABLE_MARGIN + 1e-3 - lowest
-            pregrasp = goal[k] - PREGRASP_DISTANCE * approach
-            self.waypoints.append(
-                [
-                    (np.array([centres[k, 0], centres[k, 1], max(high, centres[k, 2])]), None),
-                    (np.array([far[0], far[1], high]), goal_rot[k]),
-                    (np.array([far[0], far[1], max(far[2], floor)]), goal_rot[k]),
-                    (np.array([*pregrasp[:2], max(pregrasp[2], floor)]), goal_rot[k]),
-                    (goal[k], goal_rot[k]),
-                ]
-            )
-
-    @staticmethod
-    def _delta(
-        centre: np.ndarray, rot: np.ndarray, goal: np.ndarray, goal_rot: np.ndarray | None
-    ) -> tuple[np.ndarray, bool]:
-        move = goal - centre
-        reached = float(np.linalg.norm(move)) < ScriptedLiftPolicy.POSITION_TOLERANCE
-        largest = float(np.abs(move).max())
-        if largest > MAX_TRANSLATION:
-            move *= MAX_TRANSLATION / largest
-        turn = np.zeros(3)
-        if goal_rot is not None:
-            turn = rotation_vector(goal_rot @ rot.T)
-            reached &= float(np.linalg.norm(turn)) < ScriptedLiftPolicy.ANGLE_TOLERANCE
-            largest = float(np.abs(turn).max())
-            if largest > MAX_ROTATION:
-                turn *= MAX_ROTATION / largest
-        return np.concatenate([move / MAX_TRANSLATION, turn / MAX_ROTATION]), reached
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        """The action (float32, (14,)) for observation ``obs``."""
-        s = OBS_SLICES
-        if obs[s["target_flag"]][0] < 0.5:
-            raise ValueError("ScriptedLiftPolicy: expected an observation with a target grasp")
-        if self.waypoints is None:
-            self._plan(obs)
-        assert self.waypoints is not None
-        hand_pos, hand_rot = self._poses(obs[s["hand_poses"]])
-        centres = hand_pos + self.depth * hand_rot[:, :, 1]
-        action = np.zeros(ACTION_SIZE)
-        if self.phase == "approach":
-            done = []
-            for k in range(2):
-                path = self.waypoints[k]
-                while self.progress[k] < len(path):
-                    goal, goal_rot = path[self.progress[k]]
-                    motion, reached = self._delta(centres[k], hand_rot[k], goal, goal_rot)
-                    if not reached:
-                        action[7 * k : 7 * k + 6] = motion
-                        break
-                    self.progress[k] += 1
-                done.append(self.progress[k] >= len(path))
-                action[7 * k + 6] = -1.0
-            if all(done):
-                self.phase, self.count = "close", 0
-        if self.phase == "close":
-            for k in range(2):  # keep the hands at the grasp
-                goal, goal_rot = self.waypoints[k][-1]
-                action[7 * k : 7 * k + 6] = self._delta(centres[k], hand_rot[k], goal, goal_rot)[0]
-            self.count += 1
-            if self.count > self.close_steps:
-                self.phase = "lift"
-                self.lift_goal = np.array([p[-1][0] for p in self.waypoints])
-                self.lift_goal[:, 2] += self.lift
-                self.lift_rot = np.array([p[-1][1] for p in self.waypoints])
-                self.count = 0
-        if self.phase == "lift":
-            assert self.lift_goal is not None
-            assert self.lift_rot is not None
-            phase = min(self.count / self.lift_steps, 1.0)  # smooth start and stop
-            rise = self.lift * 0.5 * (1.0 - math.cos(math.pi * phase))
-            self.count += 1
-            for k in range(2):
-                goal = self.lift_goal[k] - np.array([0.0, 0.0, self.lift - rise])
-                action[7 * k : 7 * k + 6] = self._delta(
-                    centres[k], hand_rot[k], goal, self.lift_rot[k]
-                )[0]
-        action[[6, 13]] = -1.0 if self.phase == "approach" else 1.0
-        return np.clip(action, -1.0, 1.0).astype(np.float32)
+# ScriptedLiftPolicy and PREGRASP_DISTANCE moved to lift_expert, REWARD_WEIGHTS to lift_reward
+# (0.2.0): the old names still work here for one release, with a DeprecationWarning.
+__getattr__ = moved_names(__name__)

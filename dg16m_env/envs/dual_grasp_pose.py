@@ -23,7 +23,7 @@ class DualGraspPoseEnv(OneStepGraspEnv):
     Each episode is one step. ``reset`` draws an object of the benchmark (uniformly, with the
     environment's generator, or ``options={"object_id": ...}``) and shows its point cloud. The
     action is a dual grasp: two hand poses (Panda grasp frame -> object frame). ``step`` runs
-    ONE trial of the benchmark's protocol (:mod:`dg16m_env.trial`: the open hands at the poses,
+    ONE trial of the benchmark's protocol (:mod:`dg16m_env.physics.trial`: the open hands at the poses,
     close, gravity, twelve pushes and twists) on the object's compiled scene, with the
     benchmark's pose noise: each hand turned by the benchmark's ``theta`` (1 degree) about a
     random axis through its grasp centre and moved by ``d`` (1 mm) in a random direction, drawn
@@ -49,8 +49,8 @@ class DualGraspPoseEnv(OneStepGraspEnv):
 
     * ``points`` (3 P,): P = ``n_points`` surface points; ``obs_mode="full"``: drawn uniformly
       by area over the whole surface, the same for every episode on an object
-      (:func:`dg16m_env.observation.object_observation`, seed 0); ``obs_mode="partial"``: what
-      ``n_cameras`` seeded depth cameras see (:mod:`dg16m_env.envs.cameras`), subsampled or
+      (:func:`dg16m_env.subjects.observation.object_observation`, seed 0); ``obs_mode="partial"``: what
+      ``n_cameras`` seeded depth cameras see (:mod:`dg16m_env.physics.cameras`), subsampled or
       zero-padded to P;
     * ``normals`` (3 P,): unit outward normals of the face under each point (partial mode:
       the face of the convex part that the pixel sees, found from the segmentation image,
@@ -81,7 +81,7 @@ class DualGraspPoseEnv(OneStepGraspEnv):
     verdict of the jaws closed at the nominal action poses,
     :func:`dg16m_env.evaluators.fce.fce_verdicts`; None with ``fc_info=False``), ``slip_m``
     (largest slip at the hands' grasp centres, m), ``rotation_deg`` (largest rotation of the
-    object), ``failing_phase`` (a :data:`dg16m_env.trial.PHASES` name, or None),
+    object), ``failing_phase`` (a :data:`dg16m_env.physics.trial.PHASES` name, or None),
     ``invalid_reason`` (``hand0_penetrates``, ``hand1_penetrates``, ``hands_overlap``,
     ``degenerate_rotation`` or None), ``status`` (``success``, ``failed``, ``invalid``,
     ``unstable``, or ``not_run``). Entries that do not apply are None.
@@ -94,7 +94,7 @@ class DualGraspPoseEnv(OneStepGraspEnv):
 
     ## Arguments
 
-    * ``benchmark``: benchmark file or :class:`~dg16m_env.evaluators.context.BenchmarkRef`
+    * ``benchmark``: benchmark file or :class:`~dg16m_env.benchmark.ref.BenchmarkRef`
       (default: the procedural benchmark shipped with dg16m); its parameters give the protocol,
       the pose noise and the force-closure problem.
     * ``object_ids``: draw only among these objects (default: all).

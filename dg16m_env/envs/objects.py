@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 
 from dataset_gen.objects import GraspObject
-from dg16m_env.benchmark import BenchmarkParameters
-from dg16m_env.evaluators.context import BenchmarkRef, load_benchmark_ref
-from dg16m_env.observation import object_observation
-from dg16m_env.scene import Scene, compile_scene
+from dg16m_env.benchmark.model import BenchmarkParameters
+from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
+from dg16m_env.physics.scene import Scene, compile_scene
+from dg16m_env.subjects.observation import object_observation
 
 CACHE_SIZE = 512
 """Objects whose compiled scene / loaded object / observation are kept (least recently used
@@ -76,7 +76,7 @@ class BenchmarkObjects:
         return object_id
 
     def benchmark_object(self, object_id: str) -> Any:
-        """The :class:`~dg16m_env.benchmark.BenchmarkObject` of ``object_id``."""
+        """The :class:`~dg16m_env.benchmark.model.BenchmarkObject` of ``object_id``."""
         return self.ref.benchmark.objects[self.ref.object_ids.index(object_id)]
 
     def rows(self, object_id: str) -> np.ndarray:
@@ -92,7 +92,7 @@ class BenchmarkObjects:
         )
 
     def scene(self, object_id: str) -> Scene:
-        """The compiled trial scene (:func:`dg16m_env.scene.compile_scene`) with the
+        """The compiled trial scene (:func:`dg16m_env.physics.scene.compile_scene`) with the
         benchmark's stored parts, mass and scene parameters, cached."""
 
         def build() -> Scene:
@@ -104,7 +104,7 @@ class BenchmarkObjects:
         return _cached(self._scenes, object_id, build)
 
     def observation(self, object_id: str, n_points: int, seed: int) -> dict[str, Any]:
-        """The object's observation (:func:`dg16m_env.observation.object_observation`), cached;
+        """The object's observation (:func:`dg16m_env.subjects.observation.object_observation`), cached;
         do not modify it."""
         return _cached(
             self._observations,

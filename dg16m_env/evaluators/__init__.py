@@ -10,13 +10,17 @@ measures and which arguments it takes):
   ranking of the benchmark's candidates (the paper's Table II protocol);
 * ``policy`` (:mod:`.policy`): success rate of a policy over seeded episodes of an environment.
 
+Layer rule: modules here import the subjects, benchmark and physics layers below them, never the
+envs or cli above (the ``policy`` evaluator makes environments by id, through Gymnasium).
+
 Every result (:class:`EvaluationResult`) records the evaluator's version, the package version,
 the benchmark's sha256 and every seed.
 """
 
 # The built-ins register themselves on import.
+from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
+
 from . import classifier, fce, gsr, policy
-from .context import BenchmarkRef, load_benchmark_ref
 from .registry import Evaluator, EvaluatorError, evaluator_class, make, names, register
 from .result import EvaluationResult, ResultError, breakdown, read_results, write_results
 from .submissions import submission_evaluators

@@ -9,7 +9,7 @@ succeed (only the order of the scores matters). It is one of:
 (a) a callable ``classifier(observation, poses) -> scores``:
 
     * ``observation``: the object's observation, a ``dict``
-      (:func:`dg16m_env.observation.object_observation`: ``object_id``, ``family``, ``points``
+      (:func:`dg16m_env.subjects.observation.object_observation`: ``object_id``, ``family``, ``points``
       (P, 3) float32 m, ``normals`` (P, 3) float32, ``bounds`` (2, 3) float64 m,
       ``mesh_vertices`` (V, 3) float64 m, ``mesh_faces`` (F, 3) int64; object frame). It is a
       fresh copy for every call: the classifier may modify it.
@@ -74,11 +74,11 @@ from tqdm import tqdm
 from dataset_gen.checks import check_integer
 from dataset_gen.errors import Dg16mError
 from dataset_gen.sources import object_seed
-from dg16m_env.labels import LEVELS
-from dg16m_env.observation import object_observation
+from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
+from dg16m_env.physics.labels import LEVELS
 from dg16m_env.rates import object_rate
+from dg16m_env.subjects.observation import object_observation
 
-from .context import BenchmarkRef, load_benchmark_ref
 from .registry import Evaluator, EvaluatorError, register
 from .result import EvaluationResult, breakdown, code_subject, qualified_type
 

@@ -31,10 +31,10 @@ from dataset_gen.objects import GraspObject
 from dataset_gen.pairing import grippers_collide
 from dataset_gen.parallel import Backend, run_tasks
 from dataset_gen.sampling import SingleArmGrasps
-from dg16m_env.benchmark import BenchmarkObject
-from dg16m_env.submission import Submission
+from dg16m_env.benchmark.model import BenchmarkObject
+from dg16m_env.benchmark.ref import BenchmarkRef
+from dg16m_env.subjects.submission import Submission
 
-from .context import BenchmarkRef
 from .registry import register
 from .result import EvaluationResult, breakdown, object_means
 from .submissions import SubmissionEvaluator, submission_record
@@ -69,7 +69,7 @@ def fce_verdicts(
         obj: the object (object frame, origin at the centre of mass).
         poses: (K, 2, 4, 4) Panda hand poses (m).
         force_closure: keyword arguments of :func:`dataset_gen.force_closure.evaluate`
-            (:meth:`~dg16m_env.benchmark.BenchmarkParameters.force_closure_kwargs`).
+            (:meth:`~dg16m_env.benchmark.model.BenchmarkParameters.force_closure_kwargs`).
 
     Returns:
         ``codes (K,)`` int8 indices into :data:`REASONS` and ``loss (K,)`` float64 (the

@@ -1,6 +1,6 @@
 """``gsr``: grasp success rate of submitted dual grasps in simulation (the paper's GSR).
 
-Every submitted dual grasp is labelled like a benchmark row (:mod:`dg16m_env.labels`, benchmark
+Every submitted dual grasp is labelled like a benchmark row (:mod:`dg16m_env.physics.labels`, benchmark
 protocol v2): the trial protocol at the nominal hand poses and at K seeded perturbations of
 them (each hand moved by d and turned by theta), on the object's stored convex parts and mass,
 with the benchmark's scene and protocol. Its success probability p is the share of its K + 1
@@ -14,13 +14,13 @@ counts its grasps as 0. Metrics, each with an object-resampled 95 % confidence i
   (reported beside the headline, never instead of it);
 * ``label_rate``: the share with p >= 0.5.
 
-Per-grasp seeds are :func:`dg16m_env.labels.row_seeds` of (``perturbation_seed``, object id),
+Per-grasp seeds are :func:`dg16m_env.physics.labels.row_seeds` of (``perturbation_seed``, object id),
 so the benchmark's own rows, submitted in their stored order, get exactly their stored p.
 
 Arguments of ``make("gsr", ...)``: ``benchmark``, ``mesh_root``, ``n_perturbations`` and
 ``perturbation_seed`` (default: the benchmark's), ``workers``, ``backend``
 (``"local"``/``"ray"``), ``address``, ``n_resamples`` and ``seed`` (confidence intervals),
-``progress``, ``simulator`` (a :class:`~dg16m_env.simulator.Simulator` or its name; default C
+``progress``, ``simulator`` (a :class:`~dg16m_env.physics.simulator.Simulator` or its name; default C
 MuJoCo, the engine of the shipped labels). A result computed on another engine names it in its
 parameters (``"simulator"``), so it is never mistaken for a C MuJoCo score.
 """
@@ -34,13 +34,13 @@ from typing import Any
 import numpy as np
 
 from dataset_gen.parallel import Backend
-from dg16m_env.gsr import GraspJob, evaluate_objects
-from dg16m_env.labels import LEVELS, concatenate_labels
-from dg16m_env.simulator import Simulator, SimulatorError, check_simulator
-from dg16m_env.submission import Submission
-from dg16m_env.trial import PHASES, TrialStatus
+from dg16m_env.benchmark.ref import BenchmarkRef
+from dg16m_env.physics.gsr_core import GraspJob, evaluate_objects
+from dg16m_env.physics.labels import LEVELS, concatenate_labels
+from dg16m_env.physics.simulator import Simulator, SimulatorError, check_simulator
+from dg16m_env.physics.trial_protocol import PHASES, TrialStatus
+from dg16m_env.subjects.submission import Submission
 
-from .context import BenchmarkRef
 from .registry import EvaluatorError, register
 from .result import EvaluationResult, breakdown, object_means
 from .submissions import SubmissionEvaluator, submission_record

@@ -1,6 +1,6 @@
 """What the submission evaluators (``fce``, ``gsr``) share: their base class (the benchmark, the
 parallel backend, the confidence-interval settings) and their subject, a
-:class:`~dg16m_env.submission.Submission` in memory or a submission file, checked against the
+:class:`~dg16m_env.subjects.submission.Submission` in memory or a submission file, checked against the
 benchmark before anything is scored."""
 
 from __future__ import annotations
@@ -11,10 +11,11 @@ from typing import Any
 import numpy as np
 
 from dataset_gen.parallel import Backend, check_backend
-from dg16m_env.simulator import Simulator
-from dg16m_env.submission import Submission, read_submission
+from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
+from dg16m_env.physics.simulator import Simulator
+from dg16m_env.subjects.submission import Submission
+from dg16m_env.subjects.submission_reader import read_submission
 
-from .context import BenchmarkRef, load_benchmark_ref
 from .registry import Evaluator, EvaluatorError, evaluator_class, make
 
 
@@ -23,7 +24,7 @@ def as_submission(subject: Any, ref: BenchmarkRef) -> Submission:
 
     Args:
         subject: a :class:`Submission`, or the path of a submission file (validated in full by
-            :func:`dg16m_env.submission.read_submission`).
+            :func:`dg16m_env.subjects.submission_reader.read_submission`).
         ref: the benchmark scored against.
 
     Raises:

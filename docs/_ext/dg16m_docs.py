@@ -682,8 +682,8 @@ def _import(name: str) -> Any:
 
 
 def _documented_name(env: Any, name: str) -> str | None:
-    """Where a re-exported object is documented (``dg16m_env.trial.judge`` is documented as
-    ``dg16m_env.trial_protocol.judge``), or None."""
+    """Where a re-exported object is documented (``dg16m_env.physics.trial.judge`` is documented as
+    ``dg16m_env.physics.trial_measures.judge``), or None."""
     objects = env.get_domain("py").objects
     obj = _import(name)
     if obj is None or inspect.ismodule(obj):

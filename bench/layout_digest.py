@@ -1,0 +1,180 @@
+"""Digests of what the package makes, to show that a change of layout changed no bytes.
+
+Runs, in a scratch folder, the three things a moved or cut module could change:
+
+1. ``dg16m benchmark build`` of the first procedural object (``--perturbations 1``): the sha256
+   of ``benchmark.h5``;
+2. ``dg16m evaluate --evaluators fce,gsr`` of a submission made from that benchmark's first
+   rows, against it: the sha256 of each result's scores (the JSON without times, dates and
+   the package version);
+3. one seeded episode of each environment (``DualGraspPose``, ``DualGraspSelect`` with random
+   actions; ``DualGraspLift`` driven by the scripted expert with the benchmark's grasp): the
+   sha256 of every observation, reward, flag and ``info`` value.
+
+Prints one JSON object (``--out`` writes it too). Run it on two trees and compare::
+
+    .venv/bin/python bench/layout_digest.py --out /tmp/after.json
+    git worktree add /tmp/before <commit>
+    cp bench/layout_digest.py /tmp/before/bench/
+    # the dg16m commands are found through the installed entry points: a tree whose command
+    # modules have other names needs its own, first on PYTHONPATH
+    mkdir /tmp/before_site && cp -r .venv/lib/python3.*/site-packages/dg16m-*.dist-info /tmp/before_site/
+    (edit /tmp/before_site/dg16m-*.dist-info/entry_points.txt to the old tree's [dg16m.commands])
+    cd /tmp/before && PYTHONPATH=/tmp/before_site:/tmp/before <repo>/.venv/bin/python \
+        bench/layout_digest.py --out /tmp/before.json
+    diff /tmp/before.json /tmp/after.json
+
+The command line is run as ``python -c 'from dataset_gen.cli import main; main()'`` so that
+``PYTHONPATH`` picks the tree. Same machine, same bytes; across CPUs physics may differ in the
+last bits (see DESIGN.md), so compare digests made on one machine. About a minute on 2 cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+# Keys of a result that record when, where and with what it ran, not what it measured (``file``:
+# the submission's path, in a scratch folder).
+VOLATILE_KEYS = {
+    "created",
+    "package_version",
+    "seconds",
+    "elapsed",
+    "duration",
+    "timestamp",
+    "file",
+}
+
+
+def dg16m(*args: str) -> None:
+    """Run a ``dg16m`` command of the tree on ``PYTHONPATH`` (raises on a non-zero exit)."""
+    code = "import sys; from dataset_gen.cli import main; sys.exit(main())"
+    subprocess.run([sys.executable, "-c", code, *args], check=True)
+
+
+def digest(*values: Any) -> str:
+    """sha256 of arrays, numbers and dicts of them (a dict: its keys in order, then values)."""
+    h = hashlib.sha256()
+    for value in values:
+        if isinstance(value, dict):
+            for key in sorted(value):
+                h.update(key.encode())
+                h.update(digest(value[key]).encode())
+        else:
+            h.update(np.ascontiguousarray(np.asarray(value)).tobytes())
+    return h.hexdigest()
+
+
+def scrub(value: Any) -> Any:
+    """``value`` without the keys of :data:`VOLATILE_KEYS`, at any depth."""
+    if isinstance(value, dict):
+        return {k: scrub(v) for k, v in sorted(value.items()) if k not in VOLATILE_KEYS}
+    if isinstance(value, list):
+        return [scrub(v) for v in value]
+    return value
+
+
+def write_submission(bench_file: Path, path: Path, rows: int = 6) -> None:
+    """A submission of the first ``rows`` dual grasps of each object of ``bench_file``."""
+    with h5py.File(bench_file, "r") as f:
+        poses = f["grasps/poses"][()]
+        object_index = f["grasps/object_index"][()]
+        ids = [s.decode() if isinstance(s, bytes) else s for s in f["objects/ids"][()]]
+    with h5py.File(path, "w") as f:
+        f.attrs["format"] = "dg16m-submission"
+        f.attrs["schema_version"] = 1
+        f.attrs["benchmark"] = hashlib.sha256(bench_file.read_bytes()).hexdigest()
+        for o, object_id in enumerate(ids):
+            chosen = poses[object_index == o][:rows]
+            g = f.create_group(f"objects/{object_id}")
+            g["poses"] = chosen
+            g["scores"] = np.linspace(1.0, 0.0, len(chosen))
+
+
+def episode_digest(env_id: str, seed: int, scripted: bool) -> str:
+    import gymnasium as gym
+
+    import dg16m_env  # noqa: F401  (registers the environments)
+
+    kwargs = {"target_grasp": "benchmark"} if scripted else {}
+    env = gym.make(env_id, **kwargs)
+    policy = None
+    if scripted:
+        try:
+            from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
+        except ImportError:  # a tree from before the layered layout (0.2.0)
+            from dg16m_env.envs.dual_grasp_lift import ScriptedLiftPolicy
+        policy = ScriptedLiftPolicy()
+    env.action_space.seed(seed)
+    obs, info = env.reset(seed=seed)
+    h = hashlib.sha256(digest(obs).encode())
+    h.update(json.dumps(scrub(info), sort_keys=True, default=str).encode())
+    for _ in range(400):
+        action = policy(obs) if policy is not None else env.action_space.sample()
+        obs, reward, terminated, truncated, info = env.step(action)
+        h.update(digest(obs, reward, terminated, truncated).encode())
+        h.update(json.dumps(scrub(info), sort_keys=True, default=str).encode())
+        if terminated or truncated:
+            break
+    env.close()
+    return h.hexdigest()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, help="also write the digests here (JSON)")
+    parser.add_argument("--work", type=Path, help="scratch folder (default: a temporary one)")
+    args = parser.parse_args()
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    with tempfile.TemporaryDirectory() as tmp:
+        work = args.work or Path(tmp)
+        build = work / "build"
+        dg16m("benchmark", "build", "--out", str(build), "--limit", "1", "--perturbations", "1")
+        bench_file = build / "benchmark.h5"
+        sub = work / "submission.h5"
+        write_submission(bench_file, sub)
+        scores = work / "scores.json"
+        dg16m(
+            "evaluate",
+            str(sub),
+            "--benchmark",
+            str(bench_file),
+            "--evaluators",
+            "fce,gsr",
+            "--perturbations",
+            "1",
+            "--out",
+            str(scores),
+            "--no-progress",
+        )
+        results = json.loads(scores.read_text())
+        out: dict[str, Any] = {
+            "benchmark.h5": hashlib.sha256(bench_file.read_bytes()).hexdigest(),
+            "scores": hashlib.sha256(
+                json.dumps(scrub(results), sort_keys=True).encode()
+            ).hexdigest(),
+            "episodes": {
+                "DualGraspPose-v0": episode_digest("dg16m_env/DualGraspPose-v0", 3, False),
+                "DualGraspSelect-v0": episode_digest("dg16m_env/DualGraspSelect-v0", 3, False),
+                "DualGraspLift-v0": episode_digest("dg16m_env/DualGraspLift-v0", 3, True),
+            },
+        }
+    text = json.dumps(out, indent=2)
+    print(text)
+    if args.out:
+        args.out.write_text(text + "\n")
+
+
+if __name__ == "__main__":
+    main()

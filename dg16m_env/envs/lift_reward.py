@@ -1,0 +1,81 @@
+"""The reward of ``dg16m_env/DualGraspLift-v0``: its terms, their weights, and the one function that
+computes them from what the task measured on a step (:func:`reward_terms`). The terms and their
+signs are documented in :mod:`dg16m_env.envs.dual_grasp_lift` (*Rewards*); the reward is their
+sum, in the order of :data:`REWARD_WEIGHTS`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+REWARD_WEIGHTS: dict[str, float] = {
+    "reach": 1.0,
+    "align": 0.1,
+    "grasp": 0.25,
+    "lift": 1.0,
+    "hold": 1.0,
+    "success": 10.0,
+    "failure": 10.0,
+    "action": 0.01,
+}
+"""Weights of the reward terms (see the module docstring for their signs)."""
+
+
+def jaw_angle(rotations: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """(...) angle (rad) between hand rotations and target rotations (..., 3, 3), the smaller of
+    the target and the target turned by pi about its approach axis (the same parallel grasp)."""
+    relative = np.einsum("...ji,...jk->...ik", targets, rotations)  # R_t^T R
+    trace = relative[..., 0, 0] + relative[..., 1, 1] + relative[..., 2, 2]
+    flipped = -relative[..., 0, 0] + relative[..., 1, 1] - relative[..., 2, 2]
+    best = np.maximum(trace, flipped)
+    return np.arccos(np.clip((best - 1.0) / 2.0, -1.0, 1.0))
+
+
+def reward_terms(
+    *,
+    reach_distance: float,
+    jaw_angle: float | None,
+    hands_grasping: int,
+    both_grasping: bool,
+    lift: float,
+    lift_height: float,
+    holding: bool,
+    success: bool,
+    failure: bool,
+    motion: np.ndarray,
+    unstable: bool,
+) -> dict[str, float]:
+    """The reward terms of one step, in the order of :data:`REWARD_WEIGHTS` (their sum is the
+    reward).
+
+    Args:
+        reach_distance: mean over the hands of the distance (m) from each grasp centre to its
+            target grasp centre (with a target) or to the object's bounding box (without).
+        jaw_angle: mean over the hands of the angle (rad) to the target rotation
+            (:func:`jaw_angle`); ``None`` without a target (the ``align`` term is then 0).
+        hands_grasping: how many hands (0-2) touch the object with both fingers.
+        both_grasping: whether both hands do.
+        lift: centre-of-mass height above its resting height (m).
+        lift_height: the lift that succeeds (m, > 0).
+        holding: whether a hold is under way.
+        success: whether the episode succeeds on this step.
+        failure: whether it ends in failure on this step.
+        motion: (12,) the action's motion components (not the finger forces).
+        unstable: whether the simulation became unstable on this step: every term is then 0 but
+            ``failure``.
+    """
+    weights = REWARD_WEIGHTS
+    align = -weights["align"] * jaw_angle if jaw_angle is not None else 0.0
+    terms = {
+        "reach": -weights["reach"] * reach_distance,
+        "align": align,
+        "grasp": weights["grasp"] * float(hands_grasping),
+        "lift": weights["lift"] * min(max(lift / lift_height, 0.0), 1.0) if both_grasping else 0.0,
+        "hold": weights["hold"] if holding else 0.0,
+        "success": weights["success"] if success else 0.0,
+        "failure": -weights["failure"] if failure else 0.0,
+        "action": -weights["action"] * float(np.mean(motion**2)),
+    }
+    if unstable:  # MuJoCo reset the state: the observation is the reset state's, finite
+        terms = dict.fromkeys(terms, 0.0) | {"failure": -weights["failure"]}
+    return terms

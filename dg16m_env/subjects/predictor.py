@@ -1,0 +1,365 @@
+"""Run a grasp predictor given as code (``module:callable``) in a child process, with limits.
+
+A *predictor* is a function ``observation -> dual grasps``. It runs **only on this machine**, for
+your own code: ``dg16m evaluate --predictor`` and ``dg16m submission make --predictor`` turn its
+output into a submission file, and only that file (data, validated, never unpickled) is uploaded.
+The leaderboard server never runs uploaded code.
+
+Isolation model
+---------------
+The limits guard against mistakes (a hang, a leak, a crash), not against hostile code: the child
+runs with your user's rights, sees your files and may use the network.
+
+* ``run_predictor`` starts one child process (``multiprocessing`` "spawn", Linux). Before
+  importing the target, the child sets ``RLIMIT_CORE`` to 0 and ``RLIMIT_AS`` (virtual address
+  space, soft and hard) to ``memory_limit_mb`` MiB (0: no limit). The limit counts the whole
+  process: the interpreter and numpy already take about 150 MiB of address space (more with many
+  BLAS threads), every thread reserves its stack, and CUDA maps far more than it uses, so GPU
+  predictors need ``memory_limit_mb=0``. A limit below the child's baseline is a
+  :class:`PredictorError`. The child also makes itself a process group leader and asks to be killed
+  when this process dies.
+* The child imports the target and reports back; an import failure (module or file not found,
+  missing attribute, not callable, an exception at import, ``startup_time_limit_s`` exceeded) is
+  one :class:`PredictorError`, raised before any object is run.
+* Each observation is sent to the child (pickled: our own data, this process to the child). The
+  child writes the result to a ``.npz`` file in a private temporary folder and answers with a
+  JSON message; this process never unpickles anything the child produced
+  (``np.load(..., allow_pickle=False)``) and validates every array itself.
+* Each call may take ``time_limit_s``; the first call of each child process may in addition use
+  what the import left of ``startup_time_limit_s`` (lazy model loading, JIT warm-up). A call that
+  runs over is killed with the whole child (SIGTERM, then SIGKILL), and a fresh child takes the
+  remaining objects; a child that dies (segfault, ``os._exit``, the kernel's OOM killer) is
+  replaced the same way. If a replacement fails to start, the remaining objects fail with that
+  reason.
+  An exception raised by the callable (``MemoryError`` at the address-space limit included) is
+  caught in the child and becomes that object's error; the child goes on.
+
+The observation / return contract
+---------------------------------
+The callable receives one object's observation, a ``dict`` with the keys of
+:func:`dg16m_env.subjects.observation.object_observation` (``object_id``, ``family``, ``points`` (P, 3)
+float32, ``normals`` (P, 3) float32, ``bounds`` (2, 3), ``mesh_vertices`` (V, 3),
+``mesh_faces`` (F, 3); object frame, m), and returns one of
+
+* an array (K, 2, 4, 4): K dual grasps, the two hand poses of each (Panda grasp frame -> object
+  frame, m), finite rigid transforms within the bounds a submission file accepts (the
+  tolerances of :mod:`dg16m_env.subjects.submission`), 1 <= K <= ``max_grasps``;
+* a tuple ``(poses, scores)`` with ``scores`` (K,) finite, higher = better;
+* a dict ``{"poses": poses, "scores": scores}`` (``scores`` optional).
+
+A bare return must be an array object (numpy, or anything with ``__array__``; torch tensors are
+moved to the CPU first); inside a tuple or dict, anything ``np.asarray`` takes (lists too). Float
+or integer dtypes only; everything is converted to float64. A call should not depend on earlier calls: after a
+timeout or a crash a fresh process (a fresh import) runs the remaining objects.
+
+"spawn" starts the child by importing the parent's ``__main__`` module: a script that calls
+:func:`run_predictor` must do so under ``if __name__ == "__main__":``.
+
+Every failure is recorded per object in :attr:`PredictorRun.errors` (the last line of a message is
+its summary). :func:`submission_from_predictor` writes placeholder dual grasps that cannot
+succeed (both hands 5 m away from the object) for each failed object, as many as the most grasps
+the predictor returned for any object (:func:`failed_placeholders`), so a failed object scores 0
+and weighs as much as an answered one; it never leaves the denominator. The failures are listed in
+the submission's metadata.
+
+The child process and its supervision (limits, messages, the checks of what it returns) are
+:mod:`dg16m_env.subjects.predictor_process`; this module runs a predictor over a benchmark's
+objects and turns its answers into a submission.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import time
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from dg16m_env.benchmark.ref import BenchmarkRef
+from dg16m_env.subjects.predictor_process import (
+    _METADATA_ERROR_BYTES,
+    PredictorError,
+    PredictorSpec,
+    _StartError,
+    _Worker,
+)
+
+#: Placeholder written for an object the predictor failed on: both hands, identity rotation,
+#: 5 m from the object's centre of mass, where no grasp can touch it. (1, 2, 4, 4), m.
+FAILED_PLACEHOLDER = np.tile(np.eye(4), (1, 2, 1, 1))
+FAILED_PLACEHOLDER[0, 0, :3, 3] = (5.0, 0.0, 0.0)
+FAILED_PLACEHOLDER[0, 1, :3, 3] = (5.0, 0.5, 0.0)
+FAILED_PLACEHOLDER.setflags(write=False)
+
+
+def failed_placeholders(answered: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The dual grasps written for an object the predictor failed on: :data:`FAILED_PLACEHOLDER`
+    repeated as many times as the most grasps of any answered object (``answered``: object id
+    -> (K, 2, 4, 4) poses), at least once. (K, 2, 4, 4), m."""
+    k = max((len(p) for p in answered.values()), default=1)
+    return np.repeat(FAILED_PLACEHOLDER, max(k, 1), axis=0)
+
+
+@dataclass(eq=False)
+class PredictorRun:
+    """What a predictor produced, per object id, in the order the objects were run.
+
+    Attributes:
+        poses: object id -> (K, 2, 4, 4) float64 hand poses (m), for the objects that succeeded.
+        scores: object id -> (K,) float64 scores, for those that returned scores.
+        errors: object id -> error message (last line: the summary), for those that failed.
+        seconds: object id -> wall seconds from sending the observation to the answer (s).
+        target: the predictor's target.
+        restarts: child processes started after a timeout or a death.
+    """
+
+    poses: dict[str, np.ndarray] = field(default_factory=dict)
+    scores: dict[str, np.ndarray] = field(default_factory=dict)
+    errors: dict[str, str] = field(default_factory=dict)
+    seconds: dict[str, float] = field(default_factory=dict)
+    target: str = ""
+    restarts: int = 0
+
+    @property
+    def object_ids(self) -> list[str]:
+        """Every object run, in order."""
+        return list(self.seconds)
+
+    def summary(self) -> dict[str, Any]:
+        """Counts, times (s) and every error (JSON-ready)."""
+        seconds = list(self.seconds.values())
+        return {
+            "target": self.target,
+            "objects": len(self.seconds),
+            "succeeded": len(self.poses),
+            "failed": len(self.errors),
+            "restarts": self.restarts,
+            "dual_grasps": int(sum(len(p) for p in self.poses.values())),
+            "seconds_total": float(sum(seconds)),
+            "seconds_max": float(max(seconds, default=0.0)),
+            "errors": dict(self.errors),
+        }
+
+    def __repr__(self) -> str:  # arrays: count them
+        return (
+            f"PredictorRun({self.target!r}: {len(self.poses)} objects succeeded, "
+            f"{len(self.errors)} failed, {self.restarts} restarts)"
+        )
+
+
+def _object_id(observation: Any, run: PredictorRun) -> str:
+    """The observation's object id (a new, non-empty str)."""
+    object_id = observation.get("object_id") if isinstance(observation, Mapping) else None
+    if not isinstance(object_id, str) or not object_id:
+        raise PredictorError(
+            "observations: expected dicts with a non-empty str 'object_id', found "
+            f"{type(observation).__name__} with object_id {object_id!r}"
+        )
+    if object_id in run.seconds:
+        raise PredictorError(f"observations: expected unique object ids, found {object_id!r} twice")
+    return object_id
+
+
+def run_predictor(
+    spec: PredictorSpec,
+    observations: Iterable[Mapping[str, Any]],
+    *,
+    max_grasps: int = 100,
+    progress: bool = False,
+) -> PredictorRun:
+    """Run ``spec.target`` on every observation in a child process (see the module docstring).
+
+    Args:
+        spec: the target and its limits.
+        observations: observation dicts (:func:`dg16m_env.subjects.observation.object_observation`),
+            consumed lazily, one at a time; each needs a unique str ``object_id``.
+        max_grasps: dual grasps per object at most (K <= max_grasps).
+        progress: show a progress bar (and each failure) on stderr.
+
+    Returns:
+        Per object: the validated grasps, or the error (timeouts, deaths, exceptions and invalid
+        return values do not stop the run).
+
+    Raises:
+        PredictorError: the target cannot be imported or is not callable, the child cannot start
+            (e.g. a memory limit under its baseline), a malformed observation, bad ``max_grasps``.
+    """
+    if not isinstance(spec, PredictorSpec):
+        raise PredictorError(f"spec: expected a PredictorSpec, found {type(spec).__name__}")
+    if isinstance(max_grasps, bool) or not isinstance(max_grasps, (int, np.integer)):
+        raise PredictorError(f"max_grasps: expected an integer >= 1, found {max_grasps!r}")
+    if max_grasps < 1:
+        raise PredictorError(f"max_grasps: expected an integer >= 1, found {max_grasps}")
+    max_grasps = int(max_grasps)
+    run = PredictorRun(target=spec.target)
+    workdir = Path(tempfile.mkdtemp(prefix="dg16m-predictor-"))  # private: mode 0700
+    worker = _Worker(spec, max_grasps, workdir)
+    bar = None
+    try:
+        try:
+            worker.start()
+        except _StartError as exc:
+            raise PredictorError(f"predictor {spec.target!r} failed to start: {exc}") from None
+        if progress:
+            from tqdm import tqdm
+
+            total = len(observations) if hasattr(observations, "__len__") else None
+            bar = tqdm(total=total, unit="object", desc="predictor")
+        broken: str | None = None  # why no child can run the rest
+        for index, observation in enumerate(observations):
+            object_id = _object_id(observation, run)
+            started = time.perf_counter()
+            outcome: tuple[np.ndarray, np.ndarray | None] | str
+            if broken is None and not worker.alive:
+                try:
+                    worker.start()
+                    run.restarts += 1
+                except _StartError as exc:
+                    reason = str(exc).splitlines()[-1] if str(exc) else "unknown"
+                    broken = f"not run: the predictor could not be restarted: {reason}"
+            if broken is not None:
+                outcome = broken
+            else:
+                limit = spec.time_limit_s
+                if worker.calls == 0:  # the first call may use what the import left over
+                    limit += max(0.0, spec.startup_time_limit_s - worker.startup_s)
+                outcome = worker.ask(index, observation, limit)
+            run.seconds[object_id] = time.perf_counter() - started
+            if isinstance(outcome, str):
+                run.errors[object_id] = outcome
+                if bar is not None:
+                    bar.write(f"predictor: {object_id}: {outcome.splitlines()[-1]}")
+            else:
+                run.poses[object_id] = outcome[0]
+                if outcome[1] is not None:
+                    run.scores[object_id] = outcome[1]
+            if bar is not None:  # one refresh per object (a log shows each update once)
+                bar.set_postfix(failed=len(run.errors), refresh=False)
+                bar.update(1)
+        worker.close()
+    finally:
+        worker.stop()
+        shutil.rmtree(workdir, ignore_errors=True)
+        if bar is not None:
+            bar.close()
+    return run
+
+
+# --------------------------------------------------------------------------------------------
+# Submissions
+
+
+class _Observations:
+    """The benchmark's observations, built one at a time (sized, for the progress bar)."""
+
+    def __init__(self, ref: BenchmarkRef, mesh_root: Path | None, n_points: int, seed: int) -> None:
+        self.ref, self.mesh_root, self.n_points, self.seed = ref, mesh_root, n_points, seed
+
+    def __len__(self) -> int:
+        return len(self.ref.benchmark.objects)
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        from dg16m_env.subjects.observation import object_observation
+
+        for obj in self.ref.benchmark.objects:
+            grasp_object = obj.load(self.mesh_root)
+            yield object_observation(grasp_object, n_points=self.n_points, seed=self.seed)
+
+
+def _metadata_errors(
+    errors: Mapping[str, str], budget: int = _METADATA_ERROR_BYTES
+) -> dict[str, str]:
+    """Each error's summary line, shortened so that all of them fit in about ``budget`` bytes."""
+    if not errors:
+        return {}
+    cap = max(40, min(200, budget // len(errors) - max(len(i) for i in errors) - 8))
+    out = {}
+    for object_id, message in errors.items():
+        summary = message.splitlines()[-1] if message else ""
+        out[object_id] = summary if len(summary) <= cap else summary[: cap - 3] + "..."
+    return out
+
+
+def submission_from_predictor(
+    spec: PredictorSpec,
+    out_path: str | os.PathLike[str],
+    *,
+    benchmark: str | os.PathLike[str] | BenchmarkRef | None = None,
+    mesh_root: str | os.PathLike[str] | None = None,
+    n_points: int = 2048,
+    seed: int = 0,
+    max_grasps: int = 100,
+    progress: bool = True,
+) -> tuple[Path, PredictorRun]:
+    """Run a predictor on every benchmark object and write its submission file atomically.
+
+    Each object's observation (:func:`dg16m_env.subjects.observation.object_observation` with
+    ``n_points`` and ``seed``) is built just before it is needed. An object the predictor failed
+    on gets :func:`failed_placeholders` (as many copies of :data:`FAILED_PLACEHOLDER`, a dual
+    grasp 5 m away that cannot succeed, as the most grasps the predictor returned for any
+    object; no score): it scores 0, stays in the denominator and weighs as much there as an
+    object the predictor answered, so failing on hard objects cannot raise a rate. The metadata
+    records ``predictor`` (the target), ``failed_objects`` (id -> the error's summary line,
+    shortened), ``failed_grasps_per_object``, ``n_points``, ``seed``, ``max_grasps`` and the
+    limits.
+
+    Args:
+        spec: the predictor and its limits.
+        out_path: the submission file (HDF5) to write.
+        benchmark: a benchmark file, a loaded :class:`BenchmarkRef`, or None for the embedded one.
+        mesh_root: folder of a mesh benchmark's meshes (default: the ref's).
+        n_points: points per observation.
+        seed: seed of the observations' point clouds.
+        max_grasps: dual grasps per object at most.
+        progress: show a progress bar on stderr.
+
+    Returns:
+        The file written and the run (every error in full).
+
+    Raises:
+        PredictorError: see :func:`run_predictor`.
+        BenchmarkError: an unreadable benchmark, a mesh object without ``mesh_root``.
+        ObservationError: a bad ``n_points`` or ``seed``.
+    """
+    from dataset_gen.checks import check_integer
+    from dg16m_env.benchmark.ref import load_benchmark_ref
+    from dg16m_env.subjects.observation import ObservationError
+    from dg16m_env.subjects.submission import EMBEDDED
+    from dg16m_env.subjects.submission_writer import write_submission
+
+    check_integer("n_points", n_points, minimum=1, error=ObservationError)
+    check_integer("seed", seed, minimum=0, error=ObservationError)
+    ref = load_benchmark_ref(benchmark, mesh_root)
+    root = Path(mesh_root) if mesh_root is not None else ref.mesh_root
+    run = run_predictor(
+        spec,
+        _Observations(ref, root, int(n_points), int(seed)),
+        max_grasps=max_grasps,
+        progress=progress,
+    )
+    failed = failed_placeholders(run.poses)
+    poses = {i: run.poses.get(i, failed) for i in ref.object_ids}
+    metadata = {
+        "predictor": spec.target,
+        "failed_objects": _metadata_errors(run.errors),
+        "failed_grasps_per_object": len(failed),
+        "n_points": int(n_points),
+        "seed": int(seed),
+        "max_grasps": int(max_grasps),
+        "time_limit_s": spec.time_limit_s,
+        "memory_limit_mb": spec.memory_limit_mb,
+    }
+    path = write_submission(
+        out_path,
+        poses,
+        scores=run.scores,
+        benchmark=EMBEDDED if ref.embedded else ref.sha256,
+        metadata=metadata,
+    )
+    return path, run
