@@ -16,6 +16,13 @@ entry; each part sorted by entry-point name (by convention the module path, so c
 by package). A plugin that cannot be imported or whose ``register`` fails is reported on stderr
 by its entry-point name and value, and the other commands keep working.
 
+Start-up: building the parser imports every command module, so a command module imports only
+light things at its top (argparse, this module, :mod:`dataset_gen.errors`, small modules of
+constants) and its handlers import the rest when they run; a command whose options need a value
+of a heavy module adds them on first use (``add_command(..., arguments=...)``). ``dg16m --help``
+and ``dg16m --version`` then import no numpy, trimesh, MuJoCo, torch or Gymnasium
+(``tests/test_cli_startup.py``; ``bench/cli_startup.py`` times them).
+
 Exit status: 0 on success; ``dg16m`` without arguments prints this help and exits 0; errors
 caused by input (:class:`~dataset_gen.errors.Dg16mError`, and the operating system's errors about
 a path the user gave, :data:`PATH_ERRORS`: a file where a folder must go, a missing file) print
@@ -88,24 +95,79 @@ def add_command(
     help_text: str,
     examples: str,
     *,
-    description: str | None = None,
+    description: str | Callable[[], str] | None = None,
+    arguments: Callable[[argparse.ArgumentParser], None] | None = None,
     **kwargs: Any,
 ) -> argparse.ArgumentParser:
     """Add one ``dg16m`` subcommand with its one-line help, a wrapped description and examples.
 
     Every package's command module builds its parsers with this, so all commands look alike.
     ``examples`` is a block of indented command lines shown under "examples:" in ``--help``.
+
+    ``arguments``, when given, adds the command's arguments the first time the command is used
+    (parsed, or its help or usage shown) rather than now, and ``description`` may then be a
+    function that returns the text: for a command whose options or description need a value
+    defined in a heavy module (one that imports trimesh or MuJoCo), so that building the
+    ``dg16m`` parser, and with it ``dg16m --help``, imports none of them.
     """
-    # argparse %-formats help strings but not descriptions: "95%%" in either reads "95%"
-    text = (description or help_text).replace("%%", "%")
-    return subparsers.add_parser(
+    if callable(description) and arguments is None:
+        raise TypeError("add_command: a description function needs arguments= (added on use)")
+
+    def fill(text: str) -> str:
+        # argparse %-formats help strings but not descriptions: "95%%" in either reads "95%"
+        return textwrap.fill(text.replace("%%", "%"), 88)
+
+    parser = subparsers.add_parser(
         name,
         help=help_text,
-        description=textwrap.fill(text, 88),
+        description=None if callable(description) else fill(description or help_text),
         epilog="examples:\n" + examples,
         formatter_class=argparse.RawDescriptionHelpFormatter,
         **kwargs,
     )
+    if arguments is None:
+        return parser
+
+    def complete() -> None:
+        if callable(description):
+            parser.description = fill(description())
+        arguments(parser)
+
+    if type(parser) is argparse.ArgumentParser:
+        parser.__class__ = _DeferredParser
+        parser._pending = complete  # type: ignore[attr-defined]
+    else:  # a parser class of someone else's: no deferring, the arguments are added now
+        complete()
+    return parser
+
+
+class _DeferredParser(argparse.ArgumentParser):
+    """A subcommand's parser whose arguments are added when it is first used: parsed (argparse
+    hands a subcommand's arguments to its parser's ``parse_known_args``) or its help or usage
+    formatted (``print_help``, ``print_usage`` and ``error`` go through these)."""
+
+    _pending: Callable[[], None] | None = None
+
+    def _complete(self) -> None:
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            pending()
+
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
+        self._complete()
+        return super().parse_known_args(args, namespace)
+
+    def parse_known_intermixed_args(self, args: Any = None, namespace: Any = None) -> Any:
+        self._complete()
+        return super().parse_known_intermixed_args(args, namespace)
+
+    def format_usage(self) -> str:
+        self._complete()
+        return super().format_usage()
+
+    def format_help(self) -> str:
+        self._complete()
+        return super().format_help()
 
 
 def build_parser(
@@ -266,7 +328,8 @@ def _quiet_broken_pipe() -> int:
 
 
 def _version() -> str:
-    from dataset_gen.io import package_version
+    # the light module, not dataset_gen.io (whose formats import h5py and trimesh: ~1 s)
+    from dataset_gen.distribution import package_version
 
     return package_version()
 

@@ -1,6 +1,8 @@
 """Subcommands of ``dg16m`` provided by :mod:`dataset_gen`: objects, show, inspect, grippers.
 
-Heavy imports happen inside the handlers so that ``dg16m --help`` stays fast.
+Heavy imports happen inside the handlers so that ``dg16m --help`` stays fast; ``objects
+decompose`` and ``objects import-sweethome3d``, whose defaults live in modules that import
+trimesh, add their arguments when they are used (``add_command(..., arguments=...)``).
 """
 
 from __future__ import annotations
@@ -131,9 +133,7 @@ def _register_objects_check(actions: Any) -> None:
 
 
 def _register_objects_decompose(actions: Any) -> None:
-    from dataset_gen.decomposition import DEFAULT_THRESHOLD
-
-    decompose = add_command(
+    add_command(
         actions,
         "decompose",
         "Decompose meshes into convex hulls (CoACD, cached) and report how far the hulls stick "
@@ -153,7 +153,13 @@ def _register_objects_decompose(actions: Any) -> None:
             "loaded before any decomposition, and files are written only when all succeed. "
             "Exit status: 0 on success, 2 for bad input (nothing written)."
         ),
+        arguments=_objects_decompose_arguments,
     )
+
+
+def _objects_decompose_arguments(decompose: argparse.ArgumentParser) -> None:
+    from dataset_gen.decomposition import DEFAULT_THRESHOLD  # trimesh, SciPy: on use only
+
     decompose.add_argument(
         "meshes", nargs="+", type=Path, help="mesh files (OBJ, STL, PLY, OFF, GLB)"
     )
@@ -215,11 +221,7 @@ def _register_objects_decompose(actions: Any) -> None:
 
 
 def _register_objects_import_sweethome3d(actions: Any) -> None:
-    from dataset_gen.repair import RepairParameters
-    from dataset_gen.sweethome3d import DEFAULT_ROOT, MAX_ASPECT, SIZE_RANGE_M
-
-    defaults = RepairParameters()
-    command = add_command(
+    add_command(
         actions,
         "import-sweethome3d",
         "Import real furniture from Debian's sweethome3d-furniture libraries as a mesh folder.",
@@ -228,19 +230,33 @@ def _register_objects_import_sweethome3d(actions: Any) -> None:
         "  dg16m objects import-sweethome3d --out runs/real --workers 2\n"
         "  dg16m objects import-sweethome3d --out runs/chairs --category Office --limit 5\n"
         "  dg16m benchmark build --meshes runs/real --out runs/real_bench\n",
-        description=(
-            "Read the Sweet Home 3D furniture libraries (*.sh3f), keep the models that are "
-            "dual-arm objects (no people, doors, windows, stairs, vehicles, plants, "
-            f"textiles; longest / shortest catalogue side <= {MAX_ASPECT:g}), scale each to its "
-            f"catalogue size, then to a longest side in {SIZE_RANGE_M[0]:g}-{SIZE_RANGE_M[1]:g} m "
-            "(kept when the catalogue's is in range, else drawn uniformly, seeded), rebuild it "
-            "as one watertight volume (filled-voxel remesh, Taubin smoothing, stepwise quadric "
-            "decimation) and write OUT/<id>.obj in metres, OUT/manifest.json (source, creator, "
-            "licence, catalogue size, scale, repair, deviation from the source, sha256) and "
-            "OUT/ATTRIBUTION.md. Resumable. A model that cannot be repaired is listed with its "
-            "reason and skipped. Exit status: 0 when every model imported, 1 when some failed."
-        ),
+        description=_import_sweethome3d_description,
+        arguments=_objects_import_sweethome3d_arguments,
     )
+
+
+def _import_sweethome3d_description() -> str:
+    from dataset_gen.sweethome3d import MAX_ASPECT, SIZE_RANGE_M  # trimesh: on use only
+
+    return (
+        "Read the Sweet Home 3D furniture libraries (*.sh3f), keep the models that are "
+        "dual-arm objects (no people, doors, windows, stairs, vehicles, plants, "
+        f"textiles; longest / shortest catalogue side <= {MAX_ASPECT:g}), scale each to its "
+        f"catalogue size, then to a longest side in {SIZE_RANGE_M[0]:g}-{SIZE_RANGE_M[1]:g} m "
+        "(kept when the catalogue's is in range, else drawn uniformly, seeded), rebuild it "
+        "as one watertight volume (filled-voxel remesh, Taubin smoothing, stepwise quadric "
+        "decimation) and write OUT/<id>.obj in metres, OUT/manifest.json (source, creator, "
+        "licence, catalogue size, scale, repair, deviation from the source, sha256) and "
+        "OUT/ATTRIBUTION.md. Resumable. A model that cannot be repaired is listed with its "
+        "reason and skipped. Exit status: 0 when every model imported, 1 when some failed."
+    )
+
+
+def _objects_import_sweethome3d_arguments(command: argparse.ArgumentParser) -> None:
+    from dataset_gen.repair import RepairParameters  # trimesh: on use only
+    from dataset_gen.sweethome3d import DEFAULT_ROOT
+
+    defaults = RepairParameters()
     command.add_argument("--out", type=Path, help="output folder (required unless --list)")
     command.add_argument(
         "--root",

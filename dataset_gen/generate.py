@@ -49,8 +49,8 @@ from .pairing import (
     select_pairs,
 )
 from .parallel import Backend, run_resumable
-from .parameters import PAPER
-from .robust import SELECTIONS, RobustSelection, robust_pairs
+from .parameters import PAPER, SELECTIONS
+from .robust import RobustSelection, robust_pairs
 from .sampling import SingleArmGrasps, sample_antipodal_grasps
 from .sources import ObjectSource, object_seed
 

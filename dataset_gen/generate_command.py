@@ -11,8 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from .cli import add_command
-from .parameters import PAPER
-from .robust import SELECTIONS
+from .parameters import PAPER, SELECTIONS
 
 GENERATE_EXAMPLES = (
     "  # 20 procedural training objects on 2 local processes\n"

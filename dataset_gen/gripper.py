@@ -30,14 +30,16 @@ import enum
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Any
 
+import fcl
 import numpy as np
 import trimesh
-from trimesh.ray.ray_triangle import RayMeshIntersector
 
 from dataset_gen.errors import GripperError
 from dataset_gen.objects import GraspObject, is_rigid
 from dataset_gen.parameters import PAPER
+from dataset_gen.ray_hits import segment_hits
 
 # --------------------------------------------------------------------------------------------
 # Geometry
@@ -407,11 +409,8 @@ def _pose_status(
     valid = np.asarray(is_rigid(poses, atol=1e-5)).reshape(n)
     status[~valid] = ContactStatus.INVALID_POSE
     if check_collision and valid.any():
-        checker = _collision_checker(mesh, model, w)
-        for i in np.flatnonzero(valid):
-            outcome = checker.classify(poses[i])
-            if outcome != ContactStatus.OK:
-                status[i] = outcome
+        rows = np.flatnonzero(valid)
+        status[rows] = _collision_checker(mesh, model, w).classify_many(poses[rows])
     return status
 
 
@@ -464,18 +463,31 @@ def _finger_patch(
 def _first_hits(
     mesh: trimesh.Trimesh, origins: np.ndarray, directions: np.ndarray, max_distance: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """First hit of each ray within ``max_distance`` (exact float64 triangle intersection).
+    """First hit of each ray within ``max_distance`` (exact float64 triangle intersection,
+    :func:`dataset_gen.ray_hits.segment_hits`): the nearest hit, ties broken by face index.
 
     Returns distance (R,) (inf where none), location (R, 3) (NaN where none), face (R,) (-1).
     """
+    hits = segment_hits(mesh, origins, directions, max_distance)
+    return nearest_hits(origins, directions, max_distance, *hits)
+
+
+def nearest_hits(
+    origins: np.ndarray,
+    directions: np.ndarray,
+    max_distance: float,
+    tri: np.ndarray,
+    ray: np.ndarray,
+    loc: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The first hit of each of the R rays among hits (H,) ``tri``, ``ray``, (H, 3) ``loc``: the
+    nearest with ``0 <= dot(loc - origin, direction) <= max_distance``, ties broken by face
+    index. Returns distance (R,) (inf where none), location (R, 3) (NaN where none), face (R,)
+    (-1)."""
     count = len(origins)
     distance = np.full(count, np.inf)
     location = np.full((count, 3), np.nan)
     face = np.full(count, -1, dtype=np.int64)
-    intersector = RayMeshIntersector(mesh)
-    tri, ray, loc = intersector.intersects_id(
-        origins, directions, multiple_hits=True, return_locations=True
-    )
     if len(ray) == 0:
         return distance, location, face
     along = np.einsum("ij,ij->i", loc - origins[ray], directions[ray])
@@ -503,20 +515,38 @@ def _collision_checker(
     return mesh._cache[key]
 
 
+def _fcl_geometry(mesh: trimesh.Trimesh) -> Any:
+    """The python-fcl geometry of ``mesh``: convex or a BVH, as trimesh's collision manager
+    makes it."""
+    if mesh.is_convex:
+        return trimesh.collision.mesh_to_convex(mesh)
+    return trimesh.collision.mesh_to_BVH(mesh)
+
+
 class _CollisionChecker:
-    """Open-gripper collision tests against one object (python-fcl through trimesh)."""
+    """Open-gripper collision tests against one object (python-fcl)."""
 
     def __init__(self, mesh: trimesh.Trimesh, model: GripperModel, opening: float) -> None:
         self.mesh = mesh
         self.model = model
         self.opening = opening
-        self.manager = trimesh.collision.CollisionManager()
-        self.manager.add_object("object", mesh)
         self.palm = model.palm_box()
         self.fingers = model.finger_boxes(opening)
         self.palm_mesh = self.palm.to_mesh()
         self.finger_mesh = trimesh.util.concatenate([b.to_mesh() for b in self.fingers])
         self.solid = bool(mesh.is_watertight and mesh.is_winding_consistent)
+        # python-fcl geometry built once (trimesh's in_collision_single rebuilds the query
+        # mesh's BVH on every call), chosen as trimesh's collision manager does
+        self._object = fcl.CollisionObject(_fcl_geometry(mesh), fcl.Transform())
+        self._palm_geometry = _fcl_geometry(self.palm_mesh)
+        self._finger_geometry = _fcl_geometry(self.finger_mesh)
+
+    def _surface_hit(self, geometry: Any, T: np.ndarray) -> bool:
+        """Whether the surfaces of ``geometry`` at pose ``T`` and of the object intersect."""
+        query = fcl.CollisionObject(geometry, fcl.Transform(T[:3, :3], T[:3, 3]))
+        result = fcl.CollisionResult()
+        fcl.collide(self._object, query, fcl.CollisionRequest(), result)
+        return bool(result.is_collision)
 
     @cached_property
     def _box_centres(self) -> np.ndarray:
@@ -524,18 +554,32 @@ class _CollisionChecker:
 
     def classify(self, T: np.ndarray) -> ContactStatus:
         """OK, TOO_WIDE or COLLISION for one rigid pose."""
-        palm_hit = self.manager.in_collision_single(self.palm_mesh, transform=T)
-        finger_hit = self.manager.in_collision_single(self.finger_mesh, transform=T)
-        if not (palm_hit or finger_hit) and self.solid:
+        return ContactStatus(int(self.classify_many(np.asarray(T)[None])[0]))
+
+    def classify_many(self, poses: np.ndarray) -> np.ndarray:
+        """(M,) int8 OK, TOO_WIDE or COLLISION for (M, 4, 4) rigid poses.
+
+        The surface tests run pose by pose (python-fcl, on geometry built once); the test for boxes buried inside a
+        solid object runs once for every pose the surface tests cleared (one
+        ``mesh.contains`` call: its answer for a point does not depend on the other points)."""
+        palm_hit = np.array([self._surface_hit(self._palm_geometry, T) for T in poses], bool)
+        finger_hit = np.array([self._surface_hit(self._finger_geometry, T) for T in poses], bool)
+        clear = np.flatnonzero(~(palm_hit | finger_hit))
+        if self.solid and len(clear):
             # Surface tests miss a box buried entirely inside a solid object.
-            centres = self._box_centres @ T[:3, :3].T + T[:3, 3]
-            palm_hit = bool(self.mesh.contains(centres[:1])[0])
-            finger_hit = bool(self.mesh.contains(centres[1:]).any())
-        if finger_hit and self._crosses_both_fingers(T):
-            return ContactStatus.TOO_WIDE
-        if palm_hit or finger_hit:
-            return ContactStatus.COLLISION
-        return ContactStatus.OK
+            rotations, translations = poses[clear, :3, :3], poses[clear, :3, 3]
+            centres = np.einsum("bj,mij->mbi", self._box_centres, rotations)
+            centres += translations[:, None, :]
+            inside = np.asarray(self.mesh.contains(centres.reshape(-1, 3)), bool)
+            inside = inside.reshape(len(clear), -1)
+            palm_hit[clear] = inside[:, 0]
+            finger_hit[clear] = inside[:, 1:].any(axis=1)
+        status = np.full(len(poses), ContactStatus.OK, dtype=np.int8)
+        status[palm_hit | finger_hit] = ContactStatus.COLLISION
+        for i in np.flatnonzero(finger_hit):
+            if self._crosses_both_fingers(poses[i]):
+                status[i] = ContactStatus.TOO_WIDE
+        return status
 
     def _crosses_both_fingers(self, T: np.ndarray) -> bool:
         """Whether the surface cuts both inner finger faces' rectangles."""

@@ -107,3 +107,7 @@ class DisturbanceProtocol:
 
 PROTOCOL = DisturbanceProtocol()
 """The simulation protocol's defaults (beyond the paper: its loads and bounds); import this."""
+
+SELECTIONS: tuple[str, ...] = ("paper", "robust")
+"""Pair selections of the generator: the paper's (force closure under gravity only) and the robust
+one (:mod:`dataset_gen.robust`: also against every load of :data:`PROTOCOL`)."""

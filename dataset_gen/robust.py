@@ -52,6 +52,7 @@ from dataset_gen.errors import Dg16mError
 from dataset_gen.force_closure import evaluate
 from dataset_gen.objects import MassProperties
 from dataset_gen.parameters import PAPER, PROTOCOL, DisturbanceProtocol
+from dataset_gen.parameters import SELECTIONS as SELECTIONS  # its home before 0.2.0
 
 N_LOADS = 13
 """Gravity alone, then gravity plus each of the 12 disturbances (the protocol's order)."""
@@ -61,9 +62,6 @@ LOAD_NAMES = (
     *(f"{kind}{sign}{axis}" for kind in ("force", "torque") for axis in "xyz" for sign in "+-"),
 )
 """Names of the 13 loads, in the order of :func:`protocol_loads` (the trial's phase names)."""
-
-SELECTIONS = ("paper", "robust")
-"""Pair selections: the paper's (gravity only) and the robust one (this module)."""
 
 
 class RobustError(Dg16mError, ValueError):

@@ -25,20 +25,23 @@ face than the released code did. The verifier resolves this in two ways:
 On a two-sided mesh the face choice can emulate the other convention (flipping every normal turns
 one convention into the other), so the report also counts how many points needed a face other
 than trimesh's; when most of them did, the file was probably made with the other convention.
+
+The pieces live beside this module and their public names are re-exported here:
+:mod:`dataset_gen.verify_contacts` (the release mesh and the faces under the contacts),
+:mod:`dataset_gen.verify_choices` (face choices at ambiguous contacts: enumeration and
+propagation) and :mod:`dataset_gen.verify_report` (the report and its text).
 """
 
 from __future__ import annotations
 
 import itertools
 import time
-from collections.abc import Iterator
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import trimesh
-from numpy.typing import NDArray
 
 from . import io
 from .errors import Dg16mError, GraspFileError, MeshError
@@ -47,465 +50,43 @@ from .force_closure import (
     ForceClosureResult,
     evaluate,
     gravity_wrench,
-    project_cone_ball,
 )
 from .force_closure.geometry import apply_grasp
-from .json_values import json_ready
 from .parameters import PAPER
+from .verify_choices import (
+    CONE_TOLERANCE_N,
+    LOSS_ATOL,
+    MAX_TOTAL_COMBINATIONS,
+    _Enumeration,
+    _Verifier,
+)
+from .verify_contacts import (
+    OPPOSITE_NORMAL_DOT,
+    SAME_NORMAL_DOT,
+    BoolArray,
+    ContactGeometry,
+    FloatArray,
+    IntArray,
+    contact_geometry,
+    load_release_mesh,
+)
+from .verify_report import (
+    TEXT_LIMIT,
+    Disagreement,
+    VerifyReport,
+    _fmt_loss,
+    format_report,
+)
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
-
-#: Two face normals are the same choice when their dot product is at least this.
-SAME_NORMAL_DOT = 1.0 - 1e-10
-#: Two face normals are opposite (two-sided surface) when their dot product is at most this.
-OPPOSITE_NORMAL_DOT = -1.0 + 1e-6
-#: Absolute slack of the loss comparison (N), added to ``loss_rtol * stored``.
-LOSS_ATOL = 1e-6
-#: At most this many alternative face choices are evaluated per round over the whole file.
-MAX_TOTAL_COMBINATIONS = 200_000
 #: Rounds of the consistent (one face per point) resolution.
 MAX_CONSISTENT_ROUNDS = 6
-#: A stored force "sits in its cone" when it is within this distance (N) of the cone-ball.
-CONE_TOLERANCE_N = 1e-4
 #: Our solver's loss accuracy (relative) is at least this much tighter than the comparison's.
 SOLVER_RTOL = 1e-5
 #: More than this share of ambiguous points needing another face than trimesh's points to the
 #: other convention (a tie-break agrees with trimesh's about half the time by chance).
 SUSPECT_SWITCHED = 0.75
-#: Text output lists at most this many disagreeing pairs.
-TEXT_LIMIT = 20
 #: Extra array (``dg16m/<name>``) holding the generator's own outward contact normals.
 NORMALS_EXTRA = "contact_normals"
-
-
-# --------------------------------------------------------------------------------------------
-# Report
-# --------------------------------------------------------------------------------------------
-
-
-@dataclass
-class Disagreement:
-    """One pair whose recomputed verdict or loss differs from the stored one (primary normals).
-
-    Attributes:
-        index: pair index in the file.
-        kind: ``"verdict"`` (pass/fail differs) or ``"loss"`` (both fail, losses differ).
-        stored_passed, stored_loss: what the file says.
-        passed, loss: our recomputation with the primary normals (loss None when rank-deficient).
-        explained: a face choice at the pair's ambiguous contacts reproduces the stored result.
-        reason: one line saying why the pair disagrees.
-        switched_contacts: contacts (0-3) given another face in the reproducing choice.
-        resolved_loss: our loss with that choice.
-        consistent: the pair is reproduced with one face per contact point over the whole file
-            (None when that resolution did not run).
-    """
-
-    index: int
-    kind: str
-    stored_passed: bool
-    stored_loss: float
-    passed: bool
-    loss: float | None
-    explained: bool
-    reason: str
-    switched_contacts: list[int] | None = None
-    resolved_loss: float | None = None
-    consistent: bool | None = None
-
-
-@dataclass
-class VerifyReport:
-    """What :func:`verify_file` found. ``to_dict()`` is JSON-serialisable; ``format_text()`` is the
-    command's output.
-
-    Counts refer to labelled pairs (in ``fc_passing_indices`` or ``fc_failed_indices``).
-    ``agreement`` is the share of labelled pairs whose verdict we reproduce with the primary
-    normals; ``resolved_agreement`` after per-pair face choices at ambiguous contacts;
-    ``consistent_agreement`` with one face per distinct contact point (None when not run). The
-    ``*_full`` variants also require the stored loss of failing pairs to match.
-    ``convention_suspect`` is set when the consistent resolution had to switch most ambiguous
-    points away from trimesh's face (on two-sided meshes that emulates the other convention).
-    """
-
-    file: str
-    mesh: str
-    convention: str
-    normals_source: str
-    pairs: int
-    stored_passing: int
-    stored_failing: int
-    unlabelled: int
-    agreement: float
-    agreement_full: float
-    pass_to_fail: int
-    fail_to_pass: int
-    rank_deficient: int
-    failing_loss: dict[str, Any]
-    resolved_agreement: float
-    resolved_agreement_full: float
-    resolved_fail_to_pass: int
-    consistent: dict[str, Any] | None
-    convention_suspect: bool
-    contacts: dict[str, Any]
-    stored_forces: dict[str, Any]
-    disagreements: list[Disagreement]
-    notes: list[str] = field(default_factory=list)
-    parameters: dict[str, Any] = field(default_factory=dict)
-    timings: dict[str, float] = field(default_factory=dict)
-
-    @property
-    def unexplained(self) -> list[Disagreement]:
-        """Disagreements no face choice at ambiguous contacts explains."""
-        return [d for d in self.disagreements if not d.explained]
-
-    @property
-    def ok(self) -> bool:
-        """Every disagreement is explained by ambiguous normals, no contact is off the mesh and
-        the face choices do not point to the other convention (what ``--strict`` checks)."""
-        return (
-            not self.unexplained
-            and not self.convention_suspect
-            and self.contacts["off_mesh_points"] == 0
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        """A JSON-serialisable dict (NaN and inf become None)."""
-        out = json_ready(asdict(self))
-        out["unexplained"] = [d.index for d in self.unexplained]
-        return out
-
-    def format_text(self, limit: int = TEXT_LIMIT) -> str:
-        """The human-readable report (at most ``limit`` disagreements listed)."""
-        return format_report(self, limit=limit)
-
-
-# --------------------------------------------------------------------------------------------
-# Mesh and contact geometry
-# --------------------------------------------------------------------------------------------
-
-
-def load_release_mesh(path: str | Path, scale: float) -> trimesh.Trimesh:
-    """Load ``path`` as the released code did: ``trimesh.load(path, force="mesh")`` (trimesh's
-    default processing, no cleaning), scaled by ``scale``, translated by ``-centroid``.
-
-    Raises:
-        MeshError: missing or unreadable file, or no triangles in it.
-    """
-    path = Path(path)
-    if not path.exists():
-        raise MeshError(f"{path}: no such file")
-    if path.is_dir():
-        raise MeshError(f"{path}: expected a mesh file, found a directory")
-    try:
-        mesh = trimesh.load(path, force="mesh")
-    except Exception as exc:  # third-party parsers raise anything on hostile input
-        raise MeshError(
-            f"{path}: could not be loaded as a triangle mesh ({type(exc).__name__}: {exc})"
-        ) from exc
-    if not isinstance(mesh, trimesh.Trimesh):
-        raise MeshError(f"{path}: expected a triangle mesh, found {type(mesh).__name__}")
-    if len(mesh.faces) == 0 or not np.isfinite(mesh.vertices).all():
-        raise MeshError(
-            f"{path}: expected finite vertices and at least one triangle, found "
-            f"{len(mesh.vertices)} vertices and {len(mesh.faces)} faces"
-        )
-    if mesh.area <= 0:
-        raise MeshError(f"{path}: expected a surface with positive area, found area 0")
-    mesh.apply_scale(float(scale))
-    mesh.apply_translation(-mesh.centroid)
-    return mesh
-
-
-@dataclass
-class ContactGeometry:
-    """Faces under the distinct contact points of a file.
-
-    Attributes:
-        points: ``(U, 3)`` distinct contact points.
-        inverse: ``(N * 4,)`` index into ``points`` of each contact (pair-major).
-        distance: ``(U,)`` distance to the mesh (m).
-        primary: ``(U,)`` face returned by ``mesh.nearest.on_surface`` (trimesh's choice).
-        options: per point, faces with pairwise different normals, primary first (one face when
-            the point is unambiguous or off the mesh).
-        two_sided: ``(U,)`` some of the point's faces have opposite normals.
-    """
-
-    points: FloatArray
-    inverse: IntArray
-    distance: FloatArray
-    primary: IntArray
-    options: list[list[int]]
-    two_sided: BoolArray
-
-    @property
-    def ambiguous(self) -> BoolArray:
-        """``(U,)`` points on several faces with different normals."""
-        return np.array([len(o) > 1 for o in self.options], dtype=bool)
-
-
-def contact_geometry(
-    mesh: trimesh.Trimesh, contact_points: FloatArray, tolerance_m: float
-) -> ContactGeometry:
-    """Nearest face, distance and the set of faces (within ``tolerance_m``) under each distinct
-    contact point of ``contact_points`` ``(N, 4, 3)``."""
-    flat = np.asarray(contact_points, dtype=np.float64).reshape(-1, 3)
-    points, inverse = np.unique(flat, axis=0, return_inverse=True)
-    inverse = np.asarray(inverse, dtype=np.int64).reshape(-1)
-    _, distance, primary = mesh.nearest.on_surface(points)
-    primary = np.asarray(primary, dtype=np.int64)
-    normals = np.asarray(mesh.face_normals, dtype=np.float64)
-    valid_face = np.linalg.norm(normals, axis=1) > 0.5
-
-    ids, counts = mesh.triangles_tree.intersection_v(points - tolerance_m, points + tolerance_m)
-    ids = np.asarray(ids, dtype=np.int64)
-    rows = np.repeat(np.arange(len(points)), np.asarray(counts, dtype=np.int64))
-    if ids.size:
-        close = trimesh.triangles.closest_point(mesh.triangles[ids], points[rows])
-        near = np.linalg.norm(close - points[rows], axis=1) <= tolerance_m
-        near &= valid_face[ids]
-        ids, rows = ids[near], rows[near]
-    order = np.lexsort((ids, rows))
-    ids, rows = ids[order], rows[order]
-    starts = np.searchsorted(rows, np.arange(len(points) + 1))
-
-    options: list[list[int]] = []
-    two_sided = np.zeros(len(points), dtype=bool)
-    for u in range(len(points)):
-        first = int(primary[u])
-        if not valid_face[first]:  # a degenerate face won: take the nearest usable one
-            candidates = ids[starts[u] : starts[u + 1]]
-            if candidates.size == 0:
-                raise MeshError(
-                    f"contact point {points[u].tolist()} lies on a degenerate face {first} "
-                    "(zero area, no normal) and on no other face"
-                )
-            first = int(candidates[0])
-            primary[u] = first
-        chosen = [first]
-        if distance[u] <= tolerance_m:
-            for face in ids[starts[u] : starts[u + 1]]:
-                dots = normals[chosen] @ normals[face]
-                if dots.max() < SAME_NORMAL_DOT:
-                    chosen.append(int(face))
-                    two_sided[u] |= bool(dots.min() <= OPPOSITE_NORMAL_DOT)
-        options.append(chosen)
-    return ContactGeometry(points, inverse, np.asarray(distance), primary, options, two_sided)
-
-
-# --------------------------------------------------------------------------------------------
-# Face-choice enumeration
-# --------------------------------------------------------------------------------------------
-
-
-def _choice_positions(sizes: list[int], cap: int) -> Iterator[tuple[int, ...]]:
-    """Positions into each contact's option list, all-zero excluded, fewest non-zero first."""
-    varying = [k for k, s in enumerate(sizes) if s > 1]
-    produced = 0
-    for count in range(1, len(varying) + 1):
-        for subset in itertools.combinations(varying, count):
-            for picks in itertools.product(*(range(1, sizes[k]) for k in subset)):
-                if produced >= cap:
-                    return
-                choice = [0] * len(sizes)
-                for k, pick in zip(subset, picks, strict=True):
-                    choice[k] = pick
-                produced += 1
-                yield tuple(choice)
-
-
-@dataclass
-class _Enumeration:
-    """Reproducing face choices of a batch of pairs (choices are option indices per contact)."""
-
-    matches: dict[int, list[tuple[int, ...]]]
-    first: dict[int, tuple[tuple[int, ...], float]]  # pair -> (choice, loss) of the best match
-    searched: dict[int, tuple[int, int]]  # pair -> (evaluated, possible)
-
-
-class _Verifier:
-    """Shared state of one verification (file, mesh geometry, stored labels, evaluate settings)."""
-
-    def __init__(
-        self,
-        data: io.DualGraspSet,
-        geometry: ContactGeometry,
-        face_normals: FloatArray,
-        fc_kwargs: dict[str, Any],
-        loss_rtol: float,
-        progress: bool,
-    ) -> None:
-        self.data = data
-        self.geo = geometry
-        self.face_normals = face_normals
-        self.fc_kwargs = fc_kwargs
-        self.loss_rtol = loss_rtol
-        self.progress = progress
-        n = data.n
-        self.stored_pass = np.zeros(n, dtype=bool)
-        self.stored_pass[data.passing_indices] = True
-        self.labelled = self.stored_pass.copy()
-        self.labelled[data.failed_indices] = True
-        self.point_of = geometry.inverse.reshape(n, 4)
-
-    def normals_for(self, choice: dict[int, int] | None = None) -> FloatArray:
-        """``(N, 4, 3)`` mesh normals with the primary face, or ``choice[point]`` option index."""
-        faces = self.geo.primary.copy()
-        for u, pos in (choice or {}).items():
-            faces[u] = self.geo.options[u][pos]
-        return self.face_normals[faces[self.point_of]]
-
-    def cone_violation(self, pairs: IntArray, normals: FloatArray) -> FloatArray:
-        """``(len(pairs),)`` largest distance (N) of a stored force from its friction cone-ball."""
-        forces = self.data.contact_forces[pairs]
-        axes = normals if self.fc_kwargs["convention"] == "release" else -normals
-        projected = project_cone_ball(forces, axes, self.fc_kwargs["mu"], self.fc_kwargs["f_high"])
-        return np.linalg.norm(forces - projected, axis=-1).max(axis=1)
-
-    def loss_matches(self, loss: FloatArray, pairs: IntArray) -> BoolArray:
-        stored = self.data.loss_values[pairs]
-        with np.errstate(invalid="ignore"):
-            close = np.abs(loss - stored) <= self.loss_rtol * stored + LOSS_ATOL
-        return np.where(np.isnan(loss), False, close)
-
-    def reproduces(self, passed: BoolArray, loss: FloatArray, pairs: IntArray) -> BoolArray:
-        """Whether (passed, loss) reproduce the stored verdict (and loss of stored failures)."""
-        stored = self.stored_pass[pairs]
-        return (passed == stored) & (stored | self.loss_matches(loss, pairs))
-
-    def disagreeing(self, passed: BoolArray, loss: FloatArray) -> IntArray:
-        everything = np.arange(self.data.n)
-        ok = self.reproduces(passed, loss, everything)
-        return np.flatnonzero(self.labelled & ~ok)
-
-    def enumerate(
-        self, pairs: IntArray, fixed: dict[int, int], max_per_pair: int
-    ) -> tuple[_Enumeration, int]:
-        """Evaluate alternative faces at the unfixed ambiguous contacts of ``pairs`` in one batch.
-
-        At most ``max_per_pair`` choices per pair, fewer when the batch would exceed
-        :data:`MAX_TOTAL_COMBINATIONS` (but at least 15, every choice of four two-faced contacts).
-        Returns the reproducing choices and the number of choices evaluated.
-        """
-        found = _Enumeration({}, {}, {})
-        rows: list[int] = []
-        faces: list[list[int]] = []
-        choices: list[tuple[int, ...]] = []
-        plans = []
-        for i in pairs:
-            opts = []
-            for u in self.point_of[i]:
-                u = int(u)
-                all_opts = self.geo.options[u]
-                if u in fixed or len(all_opts) == 1:
-                    base = fixed.get(u, 0)
-                    opts.append([base])
-                else:
-                    opts.append(list(range(len(all_opts))))
-            sizes = [len(o) for o in opts]
-            if max(sizes) > 1:
-                plans.append((int(i), opts, sizes))
-        cap = min(max_per_pair, max(15, MAX_TOTAL_COMBINATIONS // max(len(plans), 1)))
-        for i, opts, sizes in plans:
-            possible = int(np.prod(sizes)) - 1
-            evaluated = 0
-            for pos in _choice_positions(sizes, cap):
-                choice = tuple(opts[k][p] for k, p in enumerate(pos))
-                points = self.point_of[i]
-                # the same point twice in a pair must get the same face
-                if any(
-                    choice[a] != choice[b]
-                    for a in range(4)
-                    for b in range(a + 1, 4)
-                    if points[a] == points[b]
-                ):
-                    continue
-                rows.append(i)
-                choices.append(choice)
-                faces.append([self.geo.options[int(points[k])][choice[k]] for k in range(4)])
-                evaluated += 1
-            found.searched[i] = (evaluated, possible)
-        if not rows:
-            return found, 0
-        row_arr = np.asarray(rows, dtype=np.int64)
-        normals = self.face_normals[np.asarray(faces, dtype=np.int64)]
-        result = evaluate(
-            self.data.contact_points[row_arr],
-            normals,
-            progress=self.progress,
-            **self.fc_kwargs,
-        )
-        ok = self.reproduces(result.passed, result.loss, row_arr)
-        gap = np.abs(result.loss - self.data.loss_values[row_arr])
-        outside = self.cone_violation(row_arr, normals) > CONE_TOLERANCE_N
-        ranked: dict[int, list[tuple[bool, float, int]]] = {}
-        for j in np.flatnonzero(ok):
-            # choices whose cones hold the stored forces first; then for stored failures the
-            # loss closest to the stored one; then enumeration order (fewest changes first)
-            score = 0.0 if self.stored_pass[rows[j]] else float(gap[j])
-            ranked.setdefault(rows[j], []).append((bool(outside[j]), score, int(j)))
-        for i, entries in ranked.items():
-            entries.sort()
-            found.matches[i] = [choices[j] for _, _, j in entries]
-            best = entries[0][2]
-            found.first[i] = (choices[best], float(result.loss[best]))
-        return found, len(rows)
-
-    def _live(
-        self, i: int, matches: dict[int, list[tuple[int, ...]]], fixed: dict[int, int]
-    ) -> list[tuple[int, ...]]:
-        points = [int(u) for u in self.point_of[i]]
-        return [
-            c for c in matches[i] if all(fixed.get(u, c[k]) == c[k] for k, u in enumerate(points))
-        ]
-
-    def _open_points(self, i: int, fixed: dict[int, int]) -> list[int]:
-        return [
-            k
-            for k, u in enumerate(self.point_of[i])
-            if int(u) not in fixed and len(self.geo.options[int(u)]) > 1
-        ]
-
-    def propagate(
-        self, matches: dict[int, list[tuple[int, ...]]], fixed: dict[int, int]
-    ) -> tuple[int, int]:
-        """Choose one face per point so that every pair in ``matches`` keeps a reproducing choice.
-
-        Deduction first: a point is fixed when all of a pair's remaining reproducing choices
-        agree on it. When that stalls, the pair with the fewest remaining choices takes its best
-        one (a guess) and deduction resumes. Pairs left without a consistent choice are skipped
-        (they show up as disagreements when the file is re-evaluated).
-
-        Returns:
-            (points fixed by deduction, points fixed by a guess).
-        """
-        deduced = guessed = 0
-        while True:
-            changed = True
-            while changed:
-                changed = False
-                for i in sorted(matches):
-                    live = self._live(i, matches, fixed)
-                    if not live:
-                        continue
-                    for k in self._open_points(i, fixed):
-                        values = {c[k] for c in live}
-                        if len(values) == 1:
-                            fixed[int(self.point_of[i, k])] = values.pop()
-                            deduced += 1
-                            changed = True
-            open_pairs = []
-            for i in sorted(matches):
-                live = self._live(i, matches, fixed)
-                if live and self._open_points(i, fixed):
-                    open_pairs.append((len(live), i, live[0]))
-            if not open_pairs:
-                return deduced, guessed
-            _, i, choice = min(open_pairs)
-            for k in self._open_points(i, fixed):
-                fixed[int(self.point_of[i, k])] = choice[k]
-                guessed += 1
 
 
 # --------------------------------------------------------------------------------------------
@@ -950,10 +531,6 @@ def _convention_notes(
         notes.append(f"the file's metadata says convention {stored_convention!r}")
 
 
-def _fmt_loss(value: float | None) -> str:
-    return "n/a (rank-deficient)" if value is None or not np.isfinite(value) else f"{value:.4g}"
-
-
 def _contacts_text(indices: list[int]) -> str:
     return ",".join(str(k) for k in indices)
 
@@ -1070,105 +647,13 @@ def _check_stored_forces(
     return out
 
 
-# --------------------------------------------------------------------------------------------
-# Text
-# --------------------------------------------------------------------------------------------
-
-
-def _pct(value: float) -> str:
-    return f"{100 * value:.2f}%"
-
-
-def format_report(report: VerifyReport, *, limit: int = TEXT_LIMIT) -> str:
-    """The report as text: summary lines, then up to ``limit`` disagreeing pairs."""
-    c = report.contacts
-    lines = [
-        f"{report.file} on {report.mesh} (convention {report.convention}, "
-        f"scale {report.parameters.get('object_scale', 1):g})",
-        f"  pairs            {report.pairs} ({report.stored_passing} stored passing, "
-        f"{report.stored_failing} stored failing"
-        + (f", {report.unlabelled} unlabelled)" if report.unlabelled else ")"),
-        f"  contacts         {c['contacts']} ({c['distinct_points']} distinct points), max "
-        f"distance to the mesh {c['max_distance_m']:.2g} m, {c['off_mesh_points']} off it; "
-        f"{c['ambiguous_points']} on ambiguous faces ({c['two_sided_points']} two-sided, "
-        f"{c['edge_points']} edges)",
-        "  normals          "
-        + (
-            "from the file (dg16m/contact_normals)"
-            if report.normals_source == "file"
-            else "mesh face normals (trimesh nearest.on_surface, the release's choice)"
-        ),
-        f"  agreement        {_pct(report.agreement)} of verdicts with primary normals "
-        f"({report.pass_to_fail} stored pass -> ours fail, {report.fail_to_pass} stored fail -> "
-        f"ours pass); {_pct(report.agreement_full)} with failing losses too",
-    ]
-    fl = report.failing_loss
-    if fl["compared"]:
-        lines.append(
-            f"  failing losses   {fl['within_tolerance']} of {fl['compared']} match within "
-            f"{fl['loss_rtol']:g} relative (median rel. diff {fl['median_relative_difference']:.2g}, "
-            f"max {fl['max_relative_difference']:.3g})"
-        )
-    n_dis = len(report.disagreements)
-    n_unexpl = len(report.unexplained)
-    if report.normals_source == "mesh":
-        lines.append(
-            f"  resolved         {_pct(report.resolved_agreement)} of verdicts "
-            f"({_pct(report.resolved_agreement_full)} with losses) after per-pair face choices "
-            f"at ambiguous contacts; {n_dis - n_unexpl} of {n_dis} disagreements explained, "
-            f"{report.resolved_fail_to_pass} stored fail -> ours pass left"
-        )
-    if report.consistent is not None:
-        cs = report.consistent
-        lines.append(
-            f"  consistent       one face per contact point ({cs['points_switched']} of "
-            f"{cs['ambiguous_points']} ambiguous points switched from trimesh's face): "
-            f"{_pct(cs['agreement'])} of verdicts, {_pct(cs['agreement_full'])} with losses "
-            f"({len(cs['disagreeing'])} pairs left)"
-        )
-    sf = report.stored_forces
-    which = "resolved" if report.consistent is not None else "primary"
-    forces_line = (
-        f"  stored forces    max force {sf['max_force_n']:.3g} N; {sf['pairs_outside_cones']} "
-        f"pairs outside the {report.convention} friction cones of the {which} normals (max "
-        f"violation {sf['cone_violation_max_n']:.2g} N, {sf['pairs_outside_cones_passing']} "
-        "passing"
-        + (
-            f"; {sf['pairs_outside_cones_primary_normals']} with primary normals)"
-            if "pairs_outside_cones_primary_normals" in sf
-            else ")"
-        )
-    )
-    if sf.get("residual_max_passing") is not None:
-        forces_line += (
-            f"; residual on passes max {sf['residual_max_passing']:.2g} N "
-            f"(|residual - stored loss| <= {sf['residual_vs_loss_max_abs_passing']:.2g})"
-        )
-    if sf.get("residual_vs_loss_median_rel_failing") is not None:
-        forces_line += (
-            f"; on failures residual/stored loss rel. diff median "
-            f"{sf['residual_vs_loss_median_rel_failing']:.2g}"
-        )
-    lines.append(forces_line)
-    for note in report.notes:
-        lines.append(f"  note             {note}")
-    lines.append(f"  disagreements    {n_dis} ({n_unexpl} not explained by ambiguous normals)")
-    for d in report.disagreements[:limit]:
-        stored = "pass" if d.stored_passed else "fail"
-        ours = "pass" if d.passed else "fail"
-        lines.append(
-            f"    {d.index}: stored {stored} ({d.stored_loss:.4g}), ours {ours} "
-            f"({_fmt_loss(d.loss)}): {d.reason}"
-        )
-    if n_dis > limit:
-        lines.append(f"    ... {n_dis - limit} more (see --json)")
-    t = report.timings
-    detail = ", ".join(f"{k} {v:.2f}" for k, v in t.items() if k != "total")
-    lines.append(f"  time             {t.get('total', 0.0):.2f} s ({detail})")
-    return "\n".join(lines)
-
-
 __all__ = [
+    "CONE_TOLERANCE_N",
+    "LOSS_ATOL",
+    "MAX_TOTAL_COMBINATIONS",
+    "OPPOSITE_NORMAL_DOT",
+    "SAME_NORMAL_DOT",
+    "TEXT_LIMIT",
     "ContactGeometry",
     "Disagreement",
     "VerifyReport",

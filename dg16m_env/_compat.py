@@ -169,6 +169,6 @@ class _MovedModuleFinder(importlib.abc.MetaPathFinder):
 
 
 def install() -> None:
-    """Put the finder of the old module names on :data:`sys.meta_path` (once)."""
+    """Put the finder of the old module names on ``sys.meta_path`` (once)."""
     if not any(isinstance(finder, _MovedModuleFinder) for finder in sys.meta_path):
         sys.meta_path.append(_MovedModuleFinder())

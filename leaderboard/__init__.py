@@ -10,7 +10,8 @@
   evaluators (:mod:`dg16m_env.evaluators`);
 * :mod:`leaderboard.views`: what the board shows (JSON-ready);
 * :mod:`leaderboard.page`: the page (HTML, SVG charts, a small script for sorting), served or
-  exported as static files;
+  exported as static files, with its HTML helpers (:mod:`~leaderboard.page_html`) and its chart
+  (:mod:`~leaderboard.page_chart`);
 * :mod:`leaderboard.app`: the service (Starlette under uvicorn, with the request deadlines and
   limits of :mod:`leaderboard.protocol`); :mod:`leaderboard.client`: uploads over HTTP;
 * :mod:`leaderboard.commands`: ``dg16m leaderboard ...``.

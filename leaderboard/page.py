@@ -17,14 +17,19 @@ The views (built by ``leaderboard.views``):
 * submission view: ``{"id", "team", "label", "filename", "date", "status", "file_sha256",
   "size", "evaluators", "results": {name: EvaluationResult.to_dict()}}``, plus ``"private",
   "error", "log", "attempts", "events"`` in a team's own view.
+
+The code is cut in three modules, imports pointing one way (``page_html <- page_chart <- page``):
+the small formatting helpers and the HTML document around a page's body are in
+:mod:`leaderboard.page_html`, the board's per-family bar chart (inline SVG) in
+:mod:`leaderboard.page_chart`. This module holds the static assets and export, the board page
+and a submission's page; :data:`~leaderboard.page_html.DASH`,
+:data:`~leaderboard.page_chart.PALETTE` and :data:`~leaderboard.page_chart.CHART_TOP` are
+re-exported here.
 """
 
 from __future__ import annotations
 
-import html
 import json
-import math
-import re
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from importlib import resources
 from pathlib import Path
@@ -32,24 +37,30 @@ from typing import Any
 
 from dataset_gen.atomic import write_text_atomic
 
+from .page_chart import CHART_TOP, _family_chart
+from .page_chart import PALETTE as PALETTE
+from .page_html import (
+    DASH,
+    _e,
+    _flatten,
+    _is_number,
+    _is_rate,
+    _kv_table,
+    _page,
+    _percent,
+    _plain,
+    _size_text,
+    _slug,
+    _sortable_th,
+    _time,
+    _value_cell,
+)
+
 #: The static assets, files under ``leaderboard/static/``.
 ASSETS = ("board.css", "board.js")
 
-#: Bar colours of the charts (Okabe-Ito, distinguishable with colour-vision deficiencies).
-PALETTE = ("#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442")
-
-#: Submissions shown in an evaluator's chart (the first rows by rank).
-CHART_TOP = 5
-
-#: Longest legend entry of a chart (characters; longer ones are cut, in full in a tooltip).
-_LEGEND_CHARS = 90
-
-#: What a missing value shows.
-DASH = "\u2014"
-
 _BADGE = ' <span class="badge">headline</span>'
 _STATUSES = ("queued", "running", "scored", "failed")
-_ISO = re.compile(r"^(\d{4}-\d{2}-\d{2})T(\d{2}:\d{2})(?::\d{2}(?:\.\d+)?)?(Z|[+-]\d{2}:?\d{2})?$")
 
 
 # --------------------------------------------------------------------------------------------
@@ -115,180 +126,6 @@ def _submission_id(key: Any) -> int:
     if isinstance(key, str) and key.isascii() and key.isdigit():
         return int(key)
     raise ValueError(f"submission id: expected an integer, found {key!r}")
-
-
-# --------------------------------------------------------------------------------------------
-# Small formatting helpers
-
-
-def _e(value: Any) -> str:
-    """``value`` as text, escaped for HTML text and attribute values."""
-    return html.escape("" if value is None else str(value), quote=True)
-
-
-def _is_number(value: Any) -> bool:
-    """A finite int or float (not a bool)."""
-    return (
-        isinstance(value, (int, float))
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
-
-
-def _is_rate(value: Any) -> bool:
-    """A rate dict (``{"rate", "ci_low", "ci_high", ...}``)."""
-    return isinstance(value, Mapping) and "rate" in value
-
-
-def _number_text(value: Any) -> str:
-    """An int as is, a float with 4 significant digits."""
-    if isinstance(value, int):
-        return str(value)
-    return f"{float(value):.4g}"
-
-
-def _percent(value: float) -> str:
-    return f"{100 * float(value):.1f}"
-
-
-def _rate_of(value: Any) -> float | None:
-    """The rate (or plain number) of a metric value; None when absent."""
-    if _is_rate(value):
-        rate = value.get("rate")
-        return float(rate) if _is_number(rate) else None
-    return float(value) if _is_number(value) else None
-
-
-def _value_cell(value: Any, *, cls: str = "num") -> str:
-    """A ``<td>`` for a metric value: a rate dict as ``76.3% [72.1, 80.2]``, a number with 4
-    significant digits, anything absent as a dash; ``data-value`` is the number ("" if none)."""
-    if _is_rate(value):
-        rate = value.get("rate")
-        if not _is_number(rate):
-            return f'<td class="{cls} missing" data-value="">{DASH}</td>'
-        low, high = value.get("ci_low"), value.get("ci_high")
-        ci = (
-            f' <span class="ci">[{_percent(low)}, {_percent(high)}]</span>'
-            if _is_number(low) and _is_number(high)
-            else ""
-        )
-        return f'<td class="{cls}" data-value="{float(rate)!r}">{_percent(rate)}%{ci}</td>'
-    if _is_number(value):
-        return f'<td class="{cls}" data-value="{value!r}">{_e(_number_text(value))}</td>'
-    if isinstance(value, bool):
-        return f'<td class="{cls}" data-value="{int(value)}">{"yes" if value else "no"}</td>'
-    if isinstance(value, Mapping):
-        text = ", ".join(f"{k} {_plain(v)}" for k, v in value.items())
-        return f'<td class="text" data-value="{_e(text)}">{_e(text)}</td>'
-    if isinstance(value, str):
-        return f'<td class="text" data-value="{_e(value)}">{_e(value)}</td>'
-    return f'<td class="{cls} missing" data-value="">{DASH}</td>'
-
-
-def _plain(value: Any) -> str:
-    """A short text for any JSON value (numbers with 4 significant digits)."""
-    if value is None:
-        return DASH
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if _is_number(value):
-        return _number_text(value)
-    if isinstance(value, str):
-        return value
-    return json.dumps(value, sort_keys=True, default=str)
-
-
-def _exact(value: Any) -> str:
-    """A JSON value shown exactly (parameters, seeds, records): strings as is, else JSON."""
-    if isinstance(value, str):
-        return value
-    return json.dumps(value, sort_keys=True, default=str)
-
-
-def _date_text(value: Any) -> str:
-    """``2026-11-30T06:10:00Z`` as ``2026-11-30 06:10 UTC``; other text unchanged."""
-    text = "" if value is None else str(value)
-    match = _ISO.match(text)
-    if not match:
-        return text or DASH
-    day, minute, zone = match.groups()
-    zone = "UTC" if zone in (None, "Z", "+00:00", "+0000") else zone
-    return f"{day} {minute} {zone}"
-
-
-def _time(value: Any, *, day_only: bool = False) -> str:
-    """A ``<time>`` element for an ISO date (plain text when it is not one); ``day_only`` shows
-    the day and keeps the minute in its tooltip (the board's narrow date column)."""
-    if value is None or value == "":
-        return DASH
-    text = _date_text(value)
-    if day_only and _ISO.match(str(value)):
-        return f'<time datetime="{_e(value)}" title="{_e(text)}">{_e(text.split(" ")[0])}</time>'
-    return f'<time datetime="{_e(value)}">{_e(text)}</time>'
-
-
-def _size_text(size: Any) -> str:
-    """``123456`` as ``120.6 KiB (123,456 bytes)``."""
-    if not _is_number(size):
-        return DASH
-    size = int(size)
-    value, unit = float(size), "bytes"
-    for next_unit in ("KiB", "MiB", "GiB", "TiB"):
-        if value < 1024:
-            break
-        value, unit = value / 1024, next_unit
-    if unit == "bytes":
-        return f"{size:,} bytes"
-    return f"{value:.1f} {unit} ({size:,} bytes)"
-
-
-def _slug(value: Any) -> str:
-    """An id-friendly form of a name (letters, digits, ``-``, ``_``, ``.``), escaped."""
-    text = re.sub(r"[^A-Za-z0-9_.-]+", "-", str(value)).strip("-") or "x"
-    return _e(text)
-
-
-def _flatten(record: Any, prefix: str = "") -> list[tuple[str, Any]]:
-    """Nested mappings as ``(dotted.key, value)`` pairs (other values are leaves)."""
-    if isinstance(record, Mapping) and (record or not prefix):
-        pairs: list[tuple[str, Any]] = []
-        for key, value in record.items():
-            pairs += _flatten(value, f"{prefix}.{key}" if prefix else str(key))
-        return pairs
-    return [(prefix, record)]
-
-
-def _sortable_th(label: str, kind: str, *, first: str | None = None, sort: str = "") -> str:
-    """A header cell ``board.js`` sorts by (``label`` is already HTML)."""
-    extra = f' data-first="{first}"' if first else ""
-    extra += f' aria-sort="{sort}"' if sort else ""
-    return f'<th scope="col" data-sort="{kind}"{extra}>{label}</th>'
-
-
-def _page(title: str, assets: str, body: str, *, page_class: str) -> str:
-    """A whole HTML document around ``body`` (``title`` is plain text)."""
-    return (
-        "<!DOCTYPE html>\n"
-        '<html lang="en">\n<head>\n<meta charset="utf-8">\n'
-        '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
-        '<meta name="color-scheme" content="light dark">\n'
-        f"<title>{_e(title)}</title>\n"
-        '<link rel="icon" href="data:,">\n'
-        f'<link rel="stylesheet" href="{_e(assets)}board.css">\n'
-        f'<script src="{_e(assets)}board.js" defer></script>\n'
-        f'</head>\n<body class="{page_class}">\n{body}</body>\n</html>\n'
-    )
-
-
-def _kv_table(pairs: Iterable[tuple[str, Any]], *, cls: str = "kv") -> str:
-    """A small key/value table (values shown exactly)."""
-    rows = "".join(
-        f'<tr><th scope="row">{_e(key)}</th><td><code>{_e(_exact(value))}</code></td></tr>\n'
-        for key, value in pairs
-    )
-    if not rows:
-        return '<p class="none">none</p>\n'
-    return f'<table class="{cls}">\n<tbody>\n{rows}</tbody>\n</table>\n'
 
 
 # --------------------------------------------------------------------------------------------
@@ -431,147 +268,6 @@ def _evaluator_section(ev: Mapping[str, Any], link: Callable[[int], str]) -> str
     parts.append(_family_chart(ev, rows[:CHART_TOP]))
     parts.append("</section>\n")
     return "".join(parts)
-
-
-def _family_chart(ev: Mapping[str, Any], rows: Sequence[Mapping[str, Any]]) -> str:
-    """An inline SVG bar chart: the headline rate per family (with its confidence interval as a
-    whisker) of each of ``rows``; one group per family, one bar per submission, y from 0 to 100 %.
-    Without families, one group of the overall headline rate."""
-    name = str(ev.get("name") or "")
-    headline = str(ev.get("headline") or "")
-    families = [str(f) for f in ev.get("families") or []]
-    if families:
-        groups = [
-            (family, [(r.get("per_family") or {}).get(family) for r in rows]) for family in families
-        ]
-    else:
-        groups = [("overall", [(r.get("metrics") or {}).get(headline) for r in rows])]
-    n_bars = max(len(rows), 1)
-    plot_w_target = 860.0
-    group_pad = 18.0
-    bar_w = max(5.0, min(28.0, (plot_w_target / len(groups) - group_pad) / n_bars))
-    group_w = bar_w * n_bars + group_pad
-    left, right, top, plot_h, axis_h = 56.0, 16.0, 16.0, 220.0, 44.0
-    legend_top = top + plot_h + axis_h
-    legend_line = 20.0
-    legends = [
-        f"{r.get('rank')}. {r.get('label')} ({r.get('team')}) #{r.get('submission')}" for r in rows
-    ]
-    longest = max((min(len(t), _LEGEND_CHARS) for t in legends), default=0)
-    plot_right = left + group_w * len(groups)
-    width = max(plot_right, left + 18.0 + 6.8 * longest) + right
-    height = legend_top + legend_line * len(rows) + 8.0
-
-    def y_of(rate: float) -> float:
-        return top + plot_h * (1.0 - min(max(rate, 0.0), 1.0))
-
-    chart_id = f"chart-{_slug(name)}"
-    title = f"{name}: {headline} by family, top {len(rows)} submissions"
-    out = [
-        f'<figure class="chart">\n<svg class="bars" id="{chart_id}" role="img" '
-        f'aria-labelledby="{chart_id}-title" viewBox="0 0 {width:.0f} {height:.0f}" '
-        f'width="{width:.0f}" height="{height:.0f}" xmlns="http://www.w3.org/2000/svg">\n'
-        f'<title id="{chart_id}-title">{_e(title)}</title>\n'
-    ]
-    for tick in (0, 25, 50, 75, 100):
-        y = y_of(tick / 100)
-        out.append(
-            f'<line class="grid" x1="{left:.1f}" x2="{plot_right:.1f}" y1="{y:.1f}" '
-            f'y2="{y:.1f}" stroke="#ccc" stroke-width="1"/>'
-            f'<text class="tick" x="{left - 6:.1f}" y="{y + 4:.1f}" text-anchor="end" '
-            f'font-size="11" fill="currentColor">{tick}%</text>\n'
-        )
-    out.append(
-        f'<text class="axis-title" x="14" y="{top + plot_h / 2:.1f}" text-anchor="middle" '
-        f'font-size="11" fill="currentColor" transform="rotate(-90 14 {top + plot_h / 2:.1f})">'
-        f"{_e(headline)} (%)</text>\n"
-    )
-    for g, (family, values) in enumerate(groups):
-        x0 = left + g * group_w + group_pad / 2
-        for b, value in enumerate(values):
-            row = rows[b]
-            x = x0 + b * bar_w
-            colour = PALETTE[b % len(PALETTE)]
-            rate = _rate_of(value)
-            who = f"{row.get('label')} ({row.get('team')}, #{row.get('submission')})"
-            if rate is None:
-                out.append(
-                    f'<text class="missing" x="{x + bar_w / 2:.1f}" y="{top + plot_h - 3:.1f}" '
-                    f'text-anchor="middle" font-size="10" fill="currentColor">{DASH}'
-                    f"<title>{_e(who)}, {_e(family)}: no score</title></text>\n"
-                )
-                continue
-            y = y_of(rate)
-            tip = f"{who}, {family}: {_percent(rate)}%"
-            whisker = ""
-            if (
-                _is_rate(value)
-                and _is_number(value.get("ci_low"))
-                and _is_number(value.get("ci_high"))
-            ):
-                lo, hi = y_of(float(value["ci_low"])), y_of(float(value["ci_high"]))
-                tip += f" [{_percent(value['ci_low'])}, {_percent(value['ci_high'])}]"
-                cx, cap = x + bar_w / 2, max(bar_w / 4, 1.5)
-                whisker = (
-                    f'<g class="whisker" stroke="#222" stroke-width="1.2">'
-                    f'<line x1="{cx:.1f}" x2="{cx:.1f}" y1="{lo:.1f}" y2="{hi:.1f}"/>'
-                    f'<line x1="{cx - cap:.1f}" x2="{cx + cap:.1f}" y1="{lo:.1f}" y2="{lo:.1f}"/>'
-                    f'<line x1="{cx - cap:.1f}" x2="{cx + cap:.1f}" y1="{hi:.1f}" y2="{hi:.1f}"/>'
-                    "</g>"
-                )
-            out.append(
-                f'<rect class="bar bar-{b}" x="{x + 0.5:.1f}" y="{y:.1f}" '
-                f'width="{max(bar_w - 1, 1):.1f}" height="{top + plot_h - y:.1f}" '
-                f'fill="{colour}"><title>{_e(tip)}</title></rect>{whisker}\n'
-            )
-        cx = x0 + bar_w * n_bars / 2
-        lines = "".join(
-            f'<tspan x="{cx:.1f}" dy="{0 if k == 0 else 13}">{_e(line)}</tspan>'
-            for k, line in enumerate(_label_lines(family, max(4, int(group_w / 6.3)), 2))
-        )
-        out.append(
-            f'<text class="family" x="{cx:.1f}" y="{top + plot_h + 16:.1f}" '
-            f'text-anchor="middle" font-size="11" fill="currentColor">{lines}'
-            f"<title>{_e(family)}</title></text>\n"
-        )
-    out.append(
-        f'<line class="axis" x1="{left:.1f}" x2="{plot_right:.1f}" y1="{top + plot_h:.1f}" '
-        f'y2="{top + plot_h:.1f}" stroke="currentColor" stroke-width="1"/>\n'
-    )
-    for b, text in enumerate(legends):
-        y = legend_top + b * legend_line
-        short = text if len(text) <= _LEGEND_CHARS else text[: _LEGEND_CHARS - 1] + "\u2026"
-        out.append(
-            f'<g class="legend"><rect x="{left:.1f}" y="{y:.1f}" width="12" height="12" '
-            f'fill="{PALETTE[b % len(PALETTE)]}"/><text x="{left + 18:.1f}" y="{y + 10:.1f}" '
-            f'font-size="12" fill="currentColor">{_e(short)}<title>{_e(text)}</title></text></g>\n'
-        )
-    out.append("</svg>\n")
-    caption = (
-        f"{_e(headline)} per family of the top {len(rows)} submissions; whiskers: 95% "
-        "confidence intervals."
-    )
-    out.append(f"<figcaption>{caption}</figcaption>\n</figure>\n")
-    return "".join(out)
-
-
-def _label_lines(text: str, width: int, max_lines: int) -> list[str]:
-    """``text`` in at most ``max_lines`` lines of about ``width`` characters, broken after
-    ``_``, ``-`` or spaces where possible; what does not fit is cut with an ellipsis."""
-    lines: list[str] = []
-    rest = text
-    while rest and len(lines) < max_lines:
-        if len(rest) <= width:
-            lines.append(rest)
-            rest = ""
-            break
-        cut = max((rest.rfind(c, 1, width + 1) for c in "_- "), default=-1)
-        cut = cut + 1 if cut > 0 else width
-        lines.append(rest[:cut].rstrip())
-        rest = rest[cut:].lstrip()
-    if rest:
-        lines[-1] = lines[-1][: max(width - 1, 1)] + "\u2026"
-    return lines
 
 
 # --------------------------------------------------------------------------------------------

@@ -148,7 +148,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 )
 """``dg16m_env``'s layers, bottom first: module-name prefixes (see ``dg16m_env/__init__.py``)."""
 
-#: Modules outside the layers: the package's ``__init__`` (it imports envs to register them) and
+#: Modules outside the layers: the package's ``__init__`` (it registers envs once Gymnasium is) and
 #: the table of old import paths (it imports nothing of the package by an import statement).
 UNLAYERED = {"dg16m_env", "dg16m_env._compat"}
 

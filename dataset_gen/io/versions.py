@@ -2,7 +2,15 @@
 
 from __future__ import annotations
 
-import importlib.metadata
+from dataset_gen.distribution import package_version
+
+__all__ = [
+    "MANIFEST_SCHEMA_VERSION",
+    "SCHEMA_VERSION",
+    "SUPPORTED_MANIFEST_VERSIONS",
+    "SUPPORTED_SCHEMA_VERSIONS",
+    "package_version",
+]
 
 SCHEMA_VERSION = 1
 """Version of the ``dg16m/`` group written by :func:`~dataset_gen.io.dg16m.write_dg16m`."""
@@ -15,11 +23,3 @@ MANIFEST_SCHEMA_VERSION = 1
 
 SUPPORTED_MANIFEST_VERSIONS = (1,)
 """Manifest schema versions :func:`~dataset_gen.io.manifest.read_manifest` understands."""
-
-
-def package_version() -> str:
-    """The installed dg16m version, or ``"0+unknown"`` when the distribution is not installed."""
-    try:
-        return importlib.metadata.version("dg16m")
-    except importlib.metadata.PackageNotFoundError:
-        return "0+unknown"

@@ -1,6 +1,7 @@
 """``dg16m benchmark build`` and ``dg16m benchmark info``: the simulation benchmark on the
 command line. The logic lives in :mod:`dg16m_env.benchmark`; heavy imports (MuJoCo) happen inside
-the handlers so that ``dg16m --help`` stays fast."""
+the handlers so that ``dg16m --help`` stays fast, and ``split-real`` and ``build-real``, whose
+numbers live in :mod:`dg16m_env.benchmark.real`, add their arguments when they are used."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from typing import Any
 from dataset_gen.cli import add_command
 from dataset_gen.parameters import PROTOCOL
 from dg16m_env.cli.evaluate import benchmark_argument
-from dg16m_env.physics.reseat import DEFAULT_RESEAT_MAX, RESEAT_STEP  # no MuJoCo: --help stays fast
+from dg16m_env.physics.reseat import DEFAULT_RESEAT_MAX, RESEAT_STEP  # constants, no numpy
 from dg16m_env.physics.simulator import add_simulator_arguments, simulator_from_args
 
 BENCHMARK_EXAMPLES = (
@@ -212,9 +213,7 @@ REAL_EXAMPLES = (
 
 
 def _register_real(sub: Any) -> None:
-    from dg16m_env.benchmark.real import REAL_LIMITS, REAL_SIZE
-
-    split = add_command(
+    add_command(
         sub,
         "split-real",
         "Make the real benchmark's split from an import folder (stratified by category).",
@@ -222,15 +221,35 @@ def _register_real(sub: Any) -> None:
         "  # bring a split up to date with a revised import, keeping its orders\n"
         "  dg16m benchmark split-real --meshes runs/real_meshes --revise real_split.json \\\n"
         "      --note 'filter v2: lamps kept' --out real_split.json\n",
-        description=(
-            f"Order each category's imported objects by a seeded permutation and give each "
-            f"category its share of the {REAL_SIZE} benchmark objects; the rest is the training "
-            "split. Records every object's OBJ sha256 (the build refuses a changed mesh). With "
-            "--revise, an existing split is updated instead: ids the import no longer has are "
-            "rejected at stage 'import', new ones are appended to their category's order "
-            "(seeded), quotas are shared again, and the revision is recorded."
-        ),
+        description=_split_real_description,
+        arguments=_split_real_arguments,
     )
+    add_command(
+        sub,
+        "build-real",
+        "Build the real-object benchmark from imported furniture, replacing objects that fail.",
+        REAL_EXAMPLES,
+        description=_build_real_description,
+        arguments=_build_real_arguments,
+    )
+
+
+def _split_real_description() -> str:
+    from dg16m_env.benchmark.real import REAL_SIZE  # the builder, MuJoCo: on use only
+
+    return (
+        f"Order each category's imported objects by a seeded permutation and give each "
+        f"category its share of the {REAL_SIZE} benchmark objects; the rest is the training "
+        "split. Records every object's OBJ sha256 (the build refuses a changed mesh). With "
+        "--revise, an existing split is updated instead: ids the import no longer has are "
+        "rejected at stage 'import', new ones are appended to their category's order "
+        "(seeded), quotas are shared again, and the revision is recorded."
+    )
+
+
+def _split_real_arguments(split: argparse.ArgumentParser) -> None:
+    from dg16m_env.benchmark.real import REAL_SIZE
+
     split.add_argument("--meshes", type=Path, required=True, help="an import-sweethome3d folder")
     split.add_argument("--out", type=Path, required=True, help="the split file to write (JSON)")
     split.add_argument("--size", type=int, default=REAL_SIZE, help=f"default: {REAL_SIZE}")
@@ -239,23 +258,24 @@ def _register_real(sub: Any) -> None:
     split.add_argument("--note", default="", help="--revise: why (recorded in the split)")
     split.set_defaults(handler=_split_real)
 
-    build = add_command(
-        sub,
-        "build-real",
-        "Build the real-object benchmark from imported furniture, replacing objects that fail.",
-        REAL_EXAMPLES,
-        description=(
-            "Build the benchmark split (the shipped dg16m_env/data/real_split.json, or --split) "
-            "of an import folder with the paper's four arms, 20 fc_robust pairs and K = 8. An "
-            f"object with fewer than {REAL_LIMITS.min_passing} force-closure-passing pairs "
-            "(screened before its decomposition, checked again before its trials), or whose "
-            f"decomposition ({REAL_LIMITS.decompose_s:g} s), sampling ({REAL_LIMITS.sample_s:g} "
-            f"s) or trials ({REAL_LIMITS.label_s:g} s) run past their budgets, is rejected with "
-            "its stage and replaced by the next object of its category. Resumable. Writes "
-            "OUT/benchmark.h5 (carrying every mesh and its convex parts) and OUT/real_split.json "
-            "(the split the build ended with)."
-        ),
+
+def _build_real_description() -> str:
+    from dg16m_env.benchmark.real import REAL_LIMITS  # the builder, MuJoCo: on use only
+
+    return (
+        "Build the benchmark split (the shipped dg16m_env/data/real_split.json, or --split) "
+        "of an import folder with the paper's four arms, 20 fc_robust pairs and K = 8. An "
+        f"object with fewer than {REAL_LIMITS.min_passing} force-closure-passing pairs "
+        "(screened before its decomposition, checked again before its trials), or whose "
+        f"decomposition ({REAL_LIMITS.decompose_s:g} s), sampling ({REAL_LIMITS.sample_s:g} "
+        f"s) or trials ({REAL_LIMITS.label_s:g} s) run past their budgets, is rejected with "
+        "its stage and replaced by the next object of its category. Resumable. Writes "
+        "OUT/benchmark.h5 (carrying every mesh and its convex parts) and OUT/real_split.json "
+        "(the split the build ended with)."
     )
+
+
+def _build_real_arguments(build: argparse.ArgumentParser) -> None:
     build.add_argument("--meshes", type=Path, required=True, help="an import-sweethome3d folder")
     build.add_argument("--out", type=Path, required=True, help="build folder")
     build.add_argument("--split", type=Path, default=None, help="split file (default: shipped)")

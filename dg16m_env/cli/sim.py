@@ -4,8 +4,9 @@
 strip or an animated GIF (:mod:`dg16m_env.physics.replay`); ``dg16m sim run`` runs the trials of a DG16M
 grasp file's pairs and compares the success rates of its force-closure passing and failing pairs.
 
-Heavy imports (MuJoCo, the benchmark, CoACD) happen inside the handlers so that ``dg16m --help``
-stays fast.
+Heavy imports (MuJoCo, the benchmark, CoACD, numpy) happen inside the handlers so that ``dg16m
+--help`` stays fast; ``replay`` and ``run``, whose ``--coacd-threshold`` help reads the default of
+:mod:`dataset_gen.decomposition` (trimesh), add their arguments when they are used.
 """
 
 from __future__ import annotations
@@ -14,16 +15,15 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from dataset_gen.cli import add_command
-from dataset_gen.decomposition import DecompositionParameters
 from dataset_gen.errors import Dg16mError
-from dataset_gen.json_values import json_ready
 from dataset_gen.parameters import PAPER
 from dg16m_env.physics.simulator import add_simulator_arguments, simulator_from_args
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 class SimCommandError(Dg16mError, ValueError):
@@ -60,6 +60,8 @@ RUN_EXAMPLES = (
 
 
 def _object_options(parser: Any, *, required: bool) -> None:
+    from dataset_gen.decomposition import DecompositionParameters  # trimesh: on use only
+
     group = parser.add_mutually_exclusive_group(required=required)
     group.add_argument("--mesh", type=Path, help="the grasp file's object mesh")
     group.add_argument(
@@ -102,7 +104,7 @@ def register(subparsers: Any) -> None:
     )
     actions = sim.add_subparsers(dest="action", metavar="ACTION", required=True)
 
-    replay = add_command(
+    add_command(
         actions,
         "replay",
         "Render one trial (a benchmark row or a pair of a DG16M file) to a PNG strip or a GIF.",
@@ -117,7 +119,26 @@ def register(subparsers: Any) -> None:
             "are red. Prints the stored label and the replayed outcome. Rendering needs "
             "MUJOCO_GL=egl (default) or osmesa."
         ),
+        arguments=_replay_arguments,
     )
+    add_command(
+        actions,
+        "run",
+        "Run the trial protocol on a DG16M file's pairs; success of passing vs failing pairs.",
+        RUN_EXAMPLES,
+        description="Run the MuJoCo trial on the force-closure passing and failing pairs of a "
+        "DG16M grasp file, at each pair's nominal pose and at K perturbed poses (1 mm / 1 degree "
+        "per hand, the benchmark's protocol v2), and print a summary of the nominal trials "
+        "(invalid ones with their reasons, success, failing phases, penetration) and the mean "
+        "success probability of the passing and of the failing pairs, held through every "
+        "disturbance and held under gravity. A trial is invalid, and not run, when an open hand "
+        "already penetrates the object's convex parts or the two hands overlap; it counts as a "
+        "failure.",
+        arguments=_run_arguments,
+    )
+
+
+def _replay_arguments(replay: argparse.ArgumentParser) -> None:
     row = replay.add_argument_group("a benchmark row")
     row.add_argument(
         "benchmark",
@@ -168,20 +189,8 @@ def register(subparsers: Any) -> None:
     output.add_argument("--fps", type=float, default=10.0, help="GIF frame rate (default: 10)")
     replay.set_defaults(handler=_replay)
 
-    run = add_command(
-        actions,
-        "run",
-        "Run the trial protocol on a DG16M file's pairs; success of passing vs failing pairs.",
-        RUN_EXAMPLES,
-        description="Run the MuJoCo trial on the force-closure passing and failing pairs of a "
-        "DG16M grasp file, at each pair's nominal pose and at K perturbed poses (1 mm / 1 degree "
-        "per hand, the benchmark's protocol v2), and print a summary of the nominal trials "
-        "(invalid ones with their reasons, success, failing phases, penetration) and the mean "
-        "success probability of the passing and of the failing pairs, held through every "
-        "disturbance and held under gravity. A trial is invalid, and not run, when an open hand "
-        "already penetrates the object's convex parts or the two hands overlap; it counts as a "
-        "failure.",
-    )
+
+def _run_arguments(run: argparse.ArgumentParser) -> None:
     run.add_argument("file", type=Path, metavar="FILE.h5", help="a DG16M grasp file")
     _object_options(run, required=True)
     run.add_argument(
@@ -268,7 +277,7 @@ def _grasp_object(args: argparse.Namespace, object_scale: float):
         family, seed = parse_object_id(args.procedural)
         obj = make_procedural_object(family, seed, mass=args.mass)
         return obj, obj.parts
-    from dataset_gen.decomposition import object_parts
+    from dataset_gen.decomposition import DecompositionParameters, object_parts
     from dataset_gen.objects import load_object
 
     # The grasp file's scale is authoritative: no plausibility check on the object's size.
@@ -472,6 +481,8 @@ def _sim_run_report(
 
 def _open_hand_hits(scene: Any, poses: np.ndarray, results: Any) -> dict[str, int]:
     """In how many trials invalid because an open hand penetrates, the palm / a finger does."""
+    import numpy as np
+
     from dg16m_env.physics.trial_protocol import InvalidReason, open_hand_penetration
 
     rows = np.flatnonzero(
@@ -497,6 +508,8 @@ def _invalid_report(results: Any, hits: dict[str, int]) -> list[str]:
     for name, count in reasons.items():
         lines.append(f"    {count:5d}  {name.replace('_', ' ')}: {INVALID_MEANING[name]}")
     if hits:
+        import numpy as np
+
         depth = results.max_penetration[results.invalid_reason > 0]
         lines += [
             f"  inside the object: the open hand's palm in {hits['palm']} of them, a finger in "
@@ -536,6 +549,8 @@ def _force_closure_rates(labels: Any, n_passing: int) -> dict[str, dict[str, Any
     """Of the passing rows (the first ``n_passing``) and of the failing rows: pairs, mean
     success probability at both levels (over all pairs), uncertain pairs, and the nominal
     trials' success rate over the valid ones."""
+    import numpy as np
+
     rates = {}
     n = labels.n
     for name, rows in (("passing", slice(0, n_passing)), ("failing", slice(n_passing, n))):
@@ -561,6 +576,8 @@ def _run_payload(
     simulator: dict[str, Any],
 ) -> dict[str, Any]:
     """The JSON report of ``dg16m sim run`` (machine-readable: full precision, NaN as null)."""
+    from dataset_gen.json_values import json_ready
+
     return {
         "file": str(file),
         "object": object_id,
@@ -576,6 +593,8 @@ def _run_payload(
 
 
 def _run(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from dataset_gen.io import read_dg16m
     from dg16m_env.benchmark.arms import choose_file_pairs
     from dg16m_env.benchmark.sources import file_gripper, file_poses
