@@ -42,7 +42,7 @@ MARKER = "demo.json"
 DEMO_FORMAT = "dg16m-demo"
 
 DEMO_EXAMPLES = """\
-  dg16m demo                         # runs/demo, 4 objects, 2 workers (about 2-3 minutes)
+  dg16m demo                         # runs/demo, 4 objects, 2 workers (about a minute)
   dg16m demo --out /tmp/tour --objects 2 --workers 1
 """
 
@@ -117,7 +117,9 @@ def demo_steps(out: Path, *, objects: int = 4, workers: int = 2) -> list[DemoSte
         ),
         DemoStep(
             "a small benchmark, labelled in MuJoCo (K = 8 perturbed trials per pair)",
-            _args("benchmark build --limit", n, "--out", out / "benchmark", w, "--no-progress"),
+            _args(
+                "benchmark build --limit", n, "--out", out / "benchmark", w
+            ),  # its progress: the longest step
             ("benchmark/benchmark.h5", "benchmark/manifest.json"),
         ),
         DemoStep(

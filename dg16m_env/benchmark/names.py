@@ -6,6 +6,7 @@ or ``None`` into a file.
 
 from __future__ import annotations
 
+import difflib
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -33,7 +34,8 @@ def benchmark_file(benchmark: str | os.PathLike[str] | None = None) -> Path:
     ``None`` (the procedural one).
 
     Raises:
-        BenchmarkError: a short name whose file is not shipped in this installation.
+        BenchmarkError: a short name whose file is not shipped in this installation, or a bare
+            word that is neither a short name nor an existing file (a misspelled name).
     """
     if benchmark is None:
         return EMBEDDED_BENCHMARK
@@ -46,4 +48,20 @@ def benchmark_file(benchmark: str | os.PathLike[str] | None = None) -> Path:
                 "'dg16m benchmark build-real' and pass the path of its benchmark.h5)"
             )
         return path
-    return Path(benchmark)
+    path = Path(benchmark)
+    if (
+        isinstance(benchmark, str)
+        and not path.suffix
+        and len(path.parts) == 1
+        and not path.exists()
+    ):
+        # a word, not a file: a misspelled short name
+        names = ", ".join(SHIPPED_BENCHMARKS)
+        close = [n for n in SHIPPED_BENCHMARKS if n.lower() == benchmark.lower()]
+        close = close or difflib.get_close_matches(benchmark, list(SHIPPED_BENCHMARKS), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise BenchmarkError(
+            f"benchmark: expected a file or one of: {names}, found {benchmark!r} (no such "
+            f"file){hint}"
+        )
+    return path

@@ -23,7 +23,7 @@ BENCHMARK_EXAMPLES = (
 )
 
 BUILD_EXAMPLES = (
-    "  # the 300-object procedural benchmark on 2 local processes (about 10 minutes)\n"
+    "  # the 300-object procedural benchmark on 2 local processes (about 36 minutes on 2 cores)\n"
     "  dg16m benchmark build --out runs/benchmark --workers 2\n"
     "  # a quick look: the first 10 objects\n"
     "  dg16m benchmark build --out runs/bench10 --limit 10\n"
