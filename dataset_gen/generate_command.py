@@ -172,10 +172,12 @@ def _generate(args: argparse.Namespace) -> int:
 
 def _sources(args: argparse.Namespace) -> list[Any]:
     from .generate import GenerationError
+    from .objects import check_mesh_folder
     from .procedural import benchmark_specs, object_specs
     from .sources import mesh_sources, procedural_sources, read_ids, select_sources
 
     if args.meshes is not None:
+        check_mesh_folder(args.meshes)
         sources = mesh_sources(args.meshes, scale=args.scale, allow_any_size=args.allow_any_size)
         return sources if args.ids is None else select_sources(sources, read_ids(args.ids))
     if args.ids is not None:
@@ -193,9 +195,11 @@ def _sources(args: argparse.Namespace) -> list[Any]:
 
 def _report(out: Path, manifest: dict[str, Any]) -> int:
     """Print the run's totals and every failed object; 1 when any object failed, else 0."""
+    from .io import failed_entries, failure_lines
+
     entries = manifest["entries"]
     ok = {k: e for k, e in entries.items() if e["status"] == "ok"}
-    failed = {k: e for k, e in entries.items() if e["status"] == "failed"}
+    failed = failed_entries(manifest)
     print(
         f"{out}: {len(ok)} objects ok, {len(failed)} failed; "
         f"{sum(e['passing'] for e in ok.values())} passing and "
@@ -204,8 +208,8 @@ def _report(out: Path, manifest: dict[str, Any]) -> int:
     no_pass = sorted(k for k, e in ok.items() if e["passing"] == 0)
     if no_pass:
         print(f"  {len(no_pass)} ok objects have no passing pair: {', '.join(no_pass)}")
-    for object_id, entry in failed.items():
-        print(f"  failed {object_id}: {entry['error']}")
+    for line in failure_lines(failed):
+        print(line)
     return 1 if failed else 0
 
 

@@ -495,6 +495,16 @@ def load_object(
     )
 
 
+def check_mesh_folder(folder: str | os.PathLike[str], flag: str = "--meshes") -> None:
+    """Raise :class:`MeshError` when ``folder`` (given as ``flag``) is a file where a folder of
+    mesh files must go: ``--meshes chair.obj`` in ``dg16m generate`` and ``dg16m benchmark
+    build`` alike. A path that does not exist is left to the reader of the folder."""
+    path = Path(folder)
+    if path.exists() and not path.is_dir():
+        what = "a file" if path.is_file() else "something that is not a folder"
+        raise MeshError(f"{flag}: expected a folder of mesh files, found {what}: {folder}")
+
+
 def check_dual_arm_size(
     mesh: trimesh.Trimesh,
     *,

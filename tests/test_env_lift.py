@@ -239,7 +239,9 @@ def test_bad_arguments_and_options_raise(bench_path: Path, bench: Benchmark) -> 
         DualGraspLiftEnv(benchmark=bench_path, target_grasp="best")
     with pytest.raises(ValueError, match="lift_height: expected a positive"):
         DualGraspLiftEnv(benchmark=bench_path, lift_height=0.0)
-    with pytest.raises(ValueError, match="render_mode: expected None or one of"):
+    with pytest.raises(
+        ValueError, match="render_mode: expected None or 'rgb_array', found 'human'"
+    ):
         DualGraspLiftEnv(benchmark=bench_path, render_mode="human")
     env = DualGraspLiftEnv(benchmark=bench_path)
     with pytest.raises(ValueError, match="options: expected keys"):

@@ -167,8 +167,8 @@ def test_ids_point_at_these_classes() -> None:
         for section in ("## Action Space", "## Observation Space", "## Rewards", "## Arguments"):
             assert section in doc
         assert "v0: initial" in doc
-        assert cls.metadata["render_modes"] == ["rgb_array"]
-        assert cls.metadata["render_fps"] > 0
+        assert cls.METADATA["render_modes"] == ["rgb_array"]
+        assert cls.METADATA["render_fps"] > 0
     assert dg16m_env.envs is not None
 
 
@@ -455,7 +455,7 @@ def test_episode_order_errors(bench_path: Path) -> None:
         ({"level": "half"}, "level: expected one of"),
         ({"n_points": 0}, "n_points: expected an integer >= 1"),
         ({"n_cameras": 3}, "n_cameras: expected 1 or 2"),
-        ({"render_mode": "human"}, "render_mode: expected None or one of"),
+        ({"render_mode": "human"}, "render_mode: expected None or 'rgb_array', found 'human'"),
         ({"reward_mode": "guess"}, "reward_mode: expected one of"),
         ({"n_candidates": 0}, "n_candidates: expected an integer >= 1"),
         ({"perturb": "yes"}, "perturb: expected True or False"),

@@ -360,7 +360,7 @@ def _vlen_extra(path: Path) -> Path:
 
 
 MALFORMED: dict[str, tuple[Callable[[Path], Path], str]] = {
-    "text_file": (_text_file, r"expected an HDF5 file, found something HDF5 cannot open"),
+    "text_file": (_text_file, r"expected an HDF5 file, found a file without the HDF5 signature"),
     "missing_loss": (
         _mutated(grasps__loss_values=None),
         r"missing: grasps/loss_values$",

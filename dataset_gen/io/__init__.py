@@ -27,7 +27,7 @@ module                             contents
 from __future__ import annotations
 
 from ._checks import RIGID_ATOL, PathLike
-from ._hdf5 import CHUNK_BYTES, open_hdf5, write_array
+from ._hdf5 import CHUNK_BYTES, hdf5_content_problem, open_hdf5, write_array
 from .acronym import (
     ACRONYM_REQUIRED_KEYS,
     ACRONYM_TO_DG16M,
@@ -51,6 +51,8 @@ from .manifest import (
     MANIFEST_KINDS,
     MANIFEST_NAME,
     MANIFEST_STATUSES,
+    failed_entries,
+    failure_lines,
     manifest_entry_path,
     new_manifest,
     read_manifest,
@@ -89,6 +91,9 @@ __all__ = [
     "acronym_to_dg16m",
     "detect_format",
     "dg16m_to_acronym",
+    "failed_entries",
+    "failure_lines",
+    "hdf5_content_problem",
     "manifest_entry_path",
     "new_manifest",
     "open_hdf5",

@@ -8,6 +8,7 @@ explicit whole-row chunks, so equal data gives equal bytes.
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +23,30 @@ CHUNK_BYTES = 512 * 1024
 """Target chunk size of compressed datasets (whole rows; below h5py's 1 MiB chunk cache)."""
 
 
+def hdf5_content_problem(path: str | os.PathLike[str]) -> str | None:
+    """What a regular file that cannot be HDF5 is, said before HDF5 tries to open it: ``"an
+    empty file (0 bytes)"`` or ``"a file without the HDF5 signature (it starts with b'...')"``;
+    ``None`` when it may be one. The one check behind "expected an HDF5 file, found ..." in
+    :func:`open_hdf5` (``dg16m inspect``, ``dg16m submission validate``) and in the submission
+    validator (``dg16m evaluate``).
+
+    Raises:
+        OSError: the file cannot be read.
+    """
+    path = Path(path)
+    if path.stat().st_size == 0:
+        return "an empty file (0 bytes)"
+    try:
+        is_hdf5 = bool(h5py.is_hdf5(path))
+    except Exception:  # a file h5py cannot even probe
+        is_hdf5 = False
+    if is_hdf5:
+        return None
+    with open(path, "rb") as handle:
+        start = handle.read(8)
+    return f"a file without the HDF5 signature (it starts with {start!r})"
+
+
 def open_hdf5(path: Path, what: str = "HDF5 grasp file") -> h5py.File:
     """Open a user's HDF5 file (``what``, for messages) for reading, turning every failure into
     :class:`GraspFileError`."""
@@ -30,6 +55,14 @@ def open_hdf5(path: Path, what: str = "HDF5 grasp file") -> h5py.File:
         raise GraspFileError(f"{path}: expected an {what}, found nothing at this path")
     if not path.is_file():
         raise GraspFileError(f"{path}: expected an {what}, found a directory/non-file")
+    try:
+        problem = hdf5_content_problem(path)
+    except OSError as exc:
+        raise GraspFileError(
+            f"{path}: expected a readable {what}, found {exc.strerror or exc}"
+        ) from exc
+    if problem is not None:
+        raise GraspFileError(f"{path}: expected an HDF5 file, found {problem}")
     try:
         return h5py.File(path, "r")
     except Exception as exc:  # h5py raises OSError, ValueError, ... for foreign files

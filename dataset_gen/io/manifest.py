@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path, PurePosixPath
 from typing import Any
 
@@ -296,3 +296,19 @@ def manifest_entry_path(
         )
     rel = _check_relative_path(f"{folder}: entries.{object_id}.files.{role}", files[role])
     return Path(folder) / PurePosixPath(rel)
+
+
+def failed_entries(manifest: Mapping[str, Any], ids: Sequence[str] | None = None) -> dict[str, str]:
+    """The objects of ``manifest`` (of ``ids``, default all) whose entry is ``failed``, each with
+    its reason; the lines ``  failed <id>: <reason>`` that ``dg16m generate`` and ``dg16m
+    benchmark build`` print come from :func:`failure_lines`."""
+    entries = manifest["entries"]
+    wanted = list(entries) if ids is None else [i for i in ids if i in entries]
+    return {
+        i: str(entries[i].get("error", "?")) for i in wanted if entries[i]["status"] == "failed"
+    }
+
+
+def failure_lines(failed: Mapping[str, str]) -> list[str]:
+    """One line per failed object: ``  failed <id>: <reason>``."""
+    return [f"  failed {object_id}: {reason}" for object_id, reason in failed.items()]

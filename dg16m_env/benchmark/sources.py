@@ -21,6 +21,7 @@ from dataset_gen.io import (
 )
 from dataset_gen.objects import (
     MESH_SUFFIXES,
+    check_mesh_folder,
 )
 from dataset_gen.procedural import benchmark_specs
 from dataset_gen.sources import (
@@ -136,6 +137,7 @@ def _mesh_sources(
     meshes: str | os.PathLike[str], scale: float | None, allow_any_size: bool
 ) -> list[ObjectSource]:
     try:
+        check_mesh_folder(meshes)
         return mesh_sources(meshes, scale=scale, allow_any_size=allow_any_size)
     except Dg16mError as exc:
         raise BenchmarkError(str(exc)) from None

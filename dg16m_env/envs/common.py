@@ -460,12 +460,46 @@ def _choice(name: str, value: Any, allowed: Sequence[str]) -> str:
     return value
 
 
-class OneStepGraspEnv(gym.Env[dict[str, np.ndarray], Any]):
+RENDER_MODES: tuple[str, ...] = ("rgb_array",)
+"""The render modes the environments implement. Not ``"human"``: a window needs pygame, which is
+no dependency of this package (render ``"rgb_array"`` frames and show them yourself)."""
+
+
+def check_render_mode(render_mode: object) -> str | None:
+    """``render_mode`` if it is ``None`` or one of :data:`RENDER_MODES`.
+
+    Raises:
+        EnvArgumentError: any other value, ``"human"`` included.
+    """
+    if render_mode is None or render_mode in RENDER_MODES:
+        return render_mode  # type: ignore[return-value]
+    modes = " or ".join(repr(mode) for mode in RENDER_MODES)
+    raise EnvArgumentError(f"render_mode: expected None or {modes}, found {render_mode!r}")
+
+
+class RenderModes:
+    """Mixin (listed before :class:`gymnasium.Env`): the class's :attr:`METADATA` served as the
+    instance property ``metadata``, whose ``render_modes`` are :data:`RENDER_MODES`.
+
+    ``gym.make(..., render_mode="human")`` wraps an environment whose *class* metadata lacks
+    ``"human"`` in ``HumanRendering``, which then fails at the first reset without pygame; for
+    an environment whose metadata is a property it passes the mode to the constructor instead,
+    so :func:`check_render_mode` refuses it at construction, by name.
+    """
+
+    METADATA: ClassVar[dict[str, Any]]
+
+    @property
+    def metadata(self) -> dict[str, Any]:
+        return self.METADATA
+
+
+class OneStepGraspEnv(RenderModes, gym.Env[dict[str, np.ndarray], Any]):
     """Base of the one-step grasp environments (see the module docstring and the subclasses'
     docstrings for spaces, rewards and arguments)."""
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": ["rgb_array"],
+    METADATA: ClassVar[dict[str, Any]] = {
+        "render_modes": list(RENDER_MODES),
         "render_fps": RENDER_FPS,
         "autoreset_mode": AutoresetMode.SAME_STEP,
     }
@@ -508,12 +542,7 @@ class OneStepGraspEnv(gym.Env[dict[str, np.ndarray], Any]):
                 raise EnvArgumentError(f"{name}: expected True or False, found {flag!r}")
         self.perturb = bool(perturb)
         self.fc_info = bool(fc_info)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise EnvArgumentError(
-                f"render_mode: expected None or one of {self.metadata['render_modes']}, found "
-                f"{render_mode!r}"
-            )
-        self.render_mode = render_mode
+        self.render_mode = check_render_mode(render_mode)
         self._scene_renderer = SceneRenderer(render_width, render_height)
         self._cameras = DepthCameras(self.camera_resolution)
 

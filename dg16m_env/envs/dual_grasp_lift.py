@@ -193,7 +193,7 @@ import os
 from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium
 import mujoco
@@ -203,6 +203,7 @@ from gymnasium import spaces
 from dataset_gen.checks import check_number
 from dg16m_env._compat import moved_names
 from dg16m_env.benchmark.ref import BenchmarkRef
+from dg16m_env.envs.common import RENDER_MODES, RenderModes, check_render_mode
 from dg16m_env.envs.lift_reward import jaw_angle, reward_terms
 from dg16m_env.envs.lift_spaces import (
     ACTION_SIZE,
@@ -290,11 +291,14 @@ class _LiftObject:
     feasible: dict[int, np.ndarray] = field(default_factory=dict)  # pose -> rows above table
 
 
-class DualGraspLiftEnv(gymnasium.Env[np.ndarray, np.ndarray]):
+class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
     """Two floating Panda hands lift a benchmark object from a table (see the module docstring:
     spaces, rewards, success, randomisations, arguments)."""
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": CONTROL_HZ}  # noqa: RUF012
+    METADATA: ClassVar[dict[str, Any]] = {
+        "render_modes": list(RENDER_MODES),
+        "render_fps": CONTROL_HZ,
+    }
 
     def __init__(
         self,
@@ -310,11 +314,7 @@ class DualGraspLiftEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     ) -> None:
         if target_grasp not in (None, "benchmark"):
             raise ValueError(f"target_grasp: expected None or 'benchmark', found {target_grasp!r}")
-        if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(
-                f"render_mode: expected None or one of {self.metadata['render_modes']}, "
-                f"found {render_mode!r}"
-            )
+        check_render_mode(render_mode)
         from dg16m_env.physics.replay import ReplayError, check_size
 
         try:

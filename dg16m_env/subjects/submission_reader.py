@@ -39,6 +39,7 @@ import h5py
 import numpy as np
 
 from dataset_gen.hashing import file_sha256
+from dataset_gen.io import hdf5_content_problem
 from dg16m_env.subjects.submission import (
     _HEX64,
     ALLOWED_FILTERS,
@@ -163,25 +164,13 @@ class _Validator:
                 f"{st.st_size} bytes (over the limit; not opened)",
             )
             return
-        if st.st_size == 0:
-            self.add("file", "expected an HDF5 file, found an empty file (0 bytes)")
-            return
         try:
-            is_hdf5 = bool(h5py.is_hdf5(path))
-        except Exception:  # a file h5py cannot even probe
-            is_hdf5 = False
-        if not is_hdf5:
-            try:
-                with open(path, "rb") as handle:
-                    start = handle.read(8)
-            except OSError as exc:
-                self.add("file", f"expected a readable file at {path}, found {exc.strerror}")
-                return
-            self.add(
-                "file",
-                f"expected an HDF5 file, found a file without the HDF5 signature "
-                f"(it starts with {start!r})",
-            )
+            problem = hdf5_content_problem(path)
+        except OSError as exc:
+            self.add("file", f"expected a readable file at {path}, found {exc.strerror}")
+            return
+        if problem is not None:
+            self.add("file", f"expected an HDF5 file, found {problem}")
             return
         try:
             f = h5py.File(path, "r")
