@@ -397,7 +397,9 @@ def _result_section(name: str, result: Mapping[str, Any]) -> str:
         "<h3>Metrics</h3>\n",
         _metrics_table(metrics, headline),
         '<div class="records">\n',
-        f"<div><h3>Parameters</h3>\n{_kv_table(_flatten(result.get('parameters') or {}))}</div>\n",
+        # The parameters (~30 rows, keys up to ~35 characters) take the grid's whole width.
+        '<div class="wide"><h3>Parameters</h3>\n'
+        f"{_kv_table(_flatten(result.get('parameters') or {}))}</div>\n",
         f"<div><h3>Seeds</h3>\n{_kv_table(_flatten(result.get('seeds') or {}))}</div>\n",
         f"<div><h3>Benchmark</h3>\n{_kv_table(_flatten(result.get('benchmark') or {}))}</div>\n",
         f"<div><h3>Subject</h3>\n{_kv_table(_flatten(result.get('subject') or {}))}</div>\n",

@@ -180,9 +180,11 @@ def _page(title: str, assets: str, body: str, *, page_class: str) -> str:
 
 
 def _kv_table(pairs: Iterable[tuple[str, Any]], *, cls: str = "kv") -> str:
-    """A small key/value table (values shown exactly)."""
+    """A small key/value table (values shown exactly). A dotted key (``scene.solimp``) may
+    break after its dots (``<wbr>``) in a narrow column."""
     rows = "".join(
-        f'<tr><th scope="row">{_e(key)}</th><td><code>{_e(_exact(value))}</code></td></tr>\n'
+        f'<tr><th scope="row">{_e(key).replace(".", ".<wbr>")}</th>'
+        f"<td><code>{_e(_exact(value))}</code></td></tr>\n"
         for key, value in pairs
     )
     if not rows:

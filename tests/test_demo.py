@@ -77,3 +77,25 @@ def test_bad_arguments_are_refused_on_the_command_line(
     assert cli_main(["demo", "--out", str(tmp_path / "d"), "--objects", "0"]) == 2
     assert "--objects: expected an integer >= 1, found 0" in capsys.readouterr().err
     assert not (tmp_path / "d").exists()
+
+
+def test_the_benchmark_report_is_printed_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 43: ``benchmark build`` and ``benchmark info`` print the same ~70-line report; the
+    demo showed it twice. The info step (run for its plot) now shows only its ``wrote`` line."""
+    report = "failure phase of failed trials (a long report)"
+
+    def run(argv: Sequence[str]) -> int:
+        if argv[:2] in (["benchmark", "build"], ["benchmark", "info"]):
+            print(report)
+            print(f"wrote {argv[-1]}")
+        return 2 if argv[:2] == ["sim", "replay"] else 0  # stop after the info step
+
+    stream = io.StringIO()
+    with pytest.raises(DemoError, match="step 7"):
+        run_demo(tmp_path / "d", objects=1, workers=1, run=run, stream=stream)
+    shown = capsys.readouterr().out + stream.getvalue()
+    assert shown.count(report) == 1
+    assert f"wrote {tmp_path / 'd' / 'benchmark.png'}" in stream.getvalue()
+    assert "$ dg16m benchmark info" in stream.getvalue()  # the command is still shown

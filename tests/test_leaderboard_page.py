@@ -536,3 +536,58 @@ def test_counts_read_in_the_singular_for_one() -> None:
     assert ">1 team<" in line
     assert ">1 submission<" in line
     assert ">2 teams<" in _counts_line({"teams": 2})
+
+
+def gsr_parameters() -> dict[str, Any]:
+    """The ``parameters`` of a gsr result on the shipped benchmark, built as the gsr evaluator
+    builds them (no simulation), plus one long JSON list."""
+    from dg16m_env.benchmark.file import read_benchmark
+    from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
+
+    params = read_benchmark(EMBEDDED_BENCHMARK).parameters()
+    return {
+        "perturbation": params.perturbation.to_dict(),
+        "scene": {**params.scene.to_dict(), "long_list": list(range(0, 2000, 37))},
+        "protocol": params.protocol.to_dict(),
+    }
+
+
+@pytest.mark.parametrize("width", [1280, 420])
+def test_parameter_values_wrap_at_words_in_chromium(
+    browser: Any, tmp_path: Path, fce_result: dict[str, Any], width: int
+) -> None:
+    """Issue 43: a gsr result's Parameters table drew each value one character per line (a
+    value cell that may break anywhere shrank to one character next to the long keys). Each
+    value now keeps a usable width: a short one on one line, a long JSON list broken at its
+    commas into a few lines, on a desktop and a phone-sized window."""
+    result = copy.deepcopy(fce_result)
+    result.update(evaluator="gsr", headline="fce", parameters=gsr_parameters())
+    view = {"id": 1, "team": "t", "label": "gsr", "status": "scored", "results": {"gsr": result}}
+    out = write_static(tmp_path / "site", {"evaluators": []}, {1: view})
+    browser.set_window_size(width, 900)
+    try:
+        browser.get((out / "submissions" / "1.html").as_uri())
+        # A value's lines: the line boxes of its inline <code> (one rectangle per line).
+        cells = browser.execute_script(
+            """const box = Array.from(document.querySelectorAll('#ev-gsr .records > div'))
+                .find(div => div.querySelector('h3').textContent === 'Parameters');
+            return Array.from(box.querySelectorAll('table.kv tr')).map(tr => {
+              const td = tr.querySelector('td');
+              return {key: tr.querySelector('th').textContent, text: td.textContent,
+                      width: td.getBoundingClientRect().width,
+                      lines: td.querySelector('code').getClientRects().length};
+            })"""
+        )
+        if width == 1280:
+            screenshot(browser, tmp_path, "leaderboard_gsr_parameters.png")
+    finally:
+        browser.set_window_size(1280, 900)
+    assert len(cells) >= 30
+    assert "scene.solimp" in [c["key"] for c in cells]
+    for cell in cells:
+        assert cell["width"] >= 120, cell  # was 27 px: one character
+        if len(cell["text"]) <= 24:  # "[0.95, 0.99, 0.001]", "0.0001", "null"
+            assert cell["lines"] == 1, cell
+    long = next(c for c in cells if c["key"] == "scene.long_list")
+    # ~300 characters: a few lines broken at ", " (was one line per character).
+    assert 1 <= long["lines"] <= (3 if width == 1280 else 20), long

@@ -474,3 +474,30 @@ def test_the_default_view_shows_both_hands(scene: Scene, bench: Benchmark) -> No
         camera_side = np.dot(position[:2], [-across[1], across[0]])
         if abs(side) > 1e-3:
             assert np.sign(side) == np.sign(camera_side)
+
+
+def test_strip_frames_show_distinct_phases(scene: Scene, bench: Benchmark) -> None:
+    """Issue 43: a strip's frames (fewer than the phases) are ends of distinct phases; an
+    animation's many frames are still spread in time."""
+    row = _ran_row(bench, failed=False)
+    stepped = step_trial(scene, bench.poses[row], bench.trials.protocol)
+    steps = frame_steps(stepped, 8)
+    phases = [stepped.phase_at(k) for k in steps[1:]]
+    assert len(set(phases)) == len(phases)  # no phase twice after the start
+    assert steps[0] == 0
+    assert steps[-1] == stepped.end
+    assert len(frame_steps(stepped, 40)) >= 40
+
+
+def test_frames_have_a_light_background(can_render: None, scene: Scene, bench: Benchmark) -> None:
+    """Issue 43: the replay was drawn on black; the corners are now the light backdrop."""
+    from dg16m_env.physics.replay import BACKGROUND
+
+    row = _ran_row(bench)
+    frames, _ = trial_frames(
+        scene, bench.poses[row], bench.trials.protocol, n_frames=2, width=160, height=120
+    )
+    for frame in frames:
+        corners = frame[[0, 0, -1, -1], [0, -1, 0, -1]].astype(float) / 255.0
+        assert corners.min() > min(BACKGROUND) - 0.1, corners
+        assert frame.std() > 5  # the object and hands are drawn over it

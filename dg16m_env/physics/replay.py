@@ -76,6 +76,13 @@ OBJECT_ALPHA = 0.5
 HAND_COLORS = ((0.95, 0.55, 0.15), (0.2, 0.7, 0.95))
 """Finger colours of hand 0 (orange) and hand 1 (blue) in renderings; palms are lighter."""
 
+BACKGROUND = (0.93, 0.94, 0.96)
+"""Colour (RGB in [0, 1]) of the backdrop behind a replayed trial (MuJoCo clears to black)."""
+
+REPLAY_DISTANCE_FACTOR = 1.6
+"""Camera distance of :func:`hands_view` as a multiple of the extent it frames (tighter than
+:data:`DISTANCE_FACTOR`, which the environments' cameras keep), so the hands are larger."""
+
 _INSTALL_HINT = (
     "offscreen rendering needs OpenGL: install libegl1 (GPU or Mesa EGL) or libosmesa6 "
     "(software) and set MUJOCO_GL=egl or MUJOCO_GL=osmesa before starting Python"
@@ -292,7 +299,8 @@ def hands_view(scene: Scene, dual_grasp: np.ndarray) -> dict[str, Any]:
     neither hand stands behind the other), from the side of the object the hands are on
     (their mean offset from the object's centre; the default azimuth's side when they are
     balanced), at :data:`DEFAULT_ELEVATION`; it looks at the middle of the object and the
-    hands and stands back far enough to hold both (:data:`HAND_REACH` around each centre).
+    hands and stands back far enough to hold both (:data:`HAND_REACH` around each centre;
+    :data:`REPLAY_DISTANCE_FACTOR` times that extent).
 
     Args:
         dual_grasp: (2, 4, 4) hand poses, gripper -> object frame (m); the object starts at the
@@ -319,7 +327,7 @@ def hands_view(scene: Scene, dual_grasp: np.ndarray) -> dict[str, Any]:
     extent = max(radius + float(np.linalg.norm(centre - lookat)), reach)
     return {
         "lookat": lookat,
-        "distance": DISTANCE_FACTOR * extent,
+        "distance": REPLAY_DISTANCE_FACTOR * extent,
         "azimuth": math.degrees(math.atan2(forward[1], forward[0])),
     }
 
@@ -410,16 +418,33 @@ def make_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Rend
         ) from exc
 
 
+def phase_ends(stepped: SteppedTrial) -> list[int]:
+    """The start (0) and the last state of each phase among the steps that decide the verdict."""
+    ends = np.flatnonzero(np.diff(stepped.plan.phase)) + 1  # the last step of each phase
+    ends = [int(k) for k in ends if k <= stepped.end] + [stepped.end]
+    return sorted({0, *ends})
+
+
 def frame_steps(stepped: SteppedTrial, n_frames: int) -> list[int]:
-    """States to render: ``n_frames`` spread evenly over the steps that decide the verdict, plus
-    the end of *close* and, for a failed trial, the first step out of bounds and the end of its
-    failing phase."""
+    """States to render: ``n_frames`` spread over the steps that decide the verdict, plus the end
+    of *close* and, for a failed trial, the first step out of bounds and the end of its failing
+    phase.
+
+    Up to as many frames as there are phase ends (:func:`phase_ends`: a strip of pictures), the
+    frames are ends of phases spread evenly over them, so no two show the same phase (the
+    object moves by millimetres: frames evenly spread in time looked alike); more frames (an
+    animation) are spread evenly in time."""
     if isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer)) or n_frames < 1:
         raise ReplayError(f"n_frames: expected an integer >= 1, found {n_frames!r}")
     end = stepped.end
     if end == 0:
         return [0]
-    steps = set(np.round(np.linspace(0, end, int(n_frames))).astype(int).tolist())
+    ends = phase_ends(stepped)
+    if n_frames <= len(ends):
+        picks = np.round(np.linspace(0, len(ends) - 1, int(n_frames))).astype(int)
+        steps = {ends[i] for i in picks.tolist()}
+    else:
+        steps = set(np.round(np.linspace(0, end, int(n_frames))).astype(int).tolist())
     if n_frames == 1:
         steps = {end}
     if stepped.plan.close_end <= end:
@@ -443,6 +468,43 @@ def caption(stepped: SteppedTrial, k: int) -> str:
     return text
 
 
+def _add_backdrop(scene: mujoco.MjvScene, camera: mujoco.MjvCamera) -> None:
+    """Add a light screen (:data:`BACKGROUND`) behind everything the free ``camera`` sees: a
+    large flat box facing it, twice its distance beyond the point it looks at (decoration:
+    only in the picture, never in the simulated model)."""
+    if scene.ngeom >= scene.maxgeom:
+        return
+    azimuth, elevation = math.radians(camera.azimuth), math.radians(camera.elevation)
+    forward = np.array(
+        [
+            math.cos(elevation) * math.cos(azimuth),
+            math.cos(elevation) * math.sin(azimuth),
+            math.sin(elevation),
+        ]
+    )
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= max(float(np.linalg.norm(right)), 1e-9)
+    up = np.cross(right, forward)
+    distance = float(camera.distance)
+    centre = np.asarray(camera.lookat, dtype=np.float64) + 2.0 * distance * forward
+    rotation = np.column_stack([right, up, forward])  # the box's z axis points away
+    size = np.array([6.0 * distance, 6.0 * distance, 1e-3 * distance])
+    geom = scene.geoms[scene.ngeom]
+    mujoco.mjv_initGeom(
+        geom,
+        mujoco.mjtGeom.mjGEOM_BOX,
+        size,
+        centre,
+        rotation.reshape(9),
+        np.array([*BACKGROUND, 1.0], dtype=np.float32),
+    )
+    geom.emission = 1.0  # its own colour, whatever the light
+    geom.specular = 0.0
+    geom.shininess = 0.0
+    geom.reflectance = 0.0
+    scene.ngeom += 1
+
+
 def render_states(
     scene: Scene,
     stepped: SteppedTrial,
@@ -459,6 +521,8 @@ def render_states(
         camera: a ``mujoco.MjvCamera``, or overrides of :func:`default_camera` (``lookat``,
             ``distance``, ``azimuth``, ``elevation``).
         contacts: draw contact points.
+
+    The object and hands stand in front of a light backdrop (:data:`BACKGROUND`).
     """
     width, height = check_size(width, height)
     model = render_model(scene, width, height)
@@ -475,6 +539,7 @@ def render_states(
             mujoco.mj_setState(model, data, control, CONTROL_SPEC)
             mujoco.mj_forward(model, data)
             renderer.update_scene(data, camera=view, scene_option=option)
+            _add_backdrop(renderer.scene, view)
             frames.append(np.array(renderer.render(), dtype=np.uint8))
     finally:
         renderer.close()

@@ -64,7 +64,8 @@ PICTURES = {
     ),
     "DualGraspLift-v0": (
         "lift_episode.gif",
-        "An episode of the scripted policy (:class:`~dg16m_env.envs.dual_grasp_lift."
+        # Captions are MyST Markdown (the figure's body): roles are written {role}`target`.
+        "An episode of the scripted policy ({py:class}`~dg16m_env.envs.dual_grasp_lift."
         "ScriptedLiftPolicy`) with a benchmark target grasp on ``tub-1000013``, seed 0: the "
         "hands reach, close, lift the tub 10 cm and hold it for 1 s.",
     ),
