@@ -66,7 +66,7 @@ def register(subparsers: Any) -> None:
 
 REPRODUCE_EXAMPLES = (
     "  dg16m reproduce table3 --out runs/table3 --workers 2        # ~20 minutes\n"
-    "  dg16m reproduce table3 --out runs/t3-quick --limit 2        # 2 objects per family\n"
+    "  dg16m reproduce table3 --out runs/t3-quick --limit 2        # 2 objects per category\n"
     "  dg16m reproduce table2 --out runs/table2                    # the shipped checkpoints\n"
     "  dg16m reproduce table2 --out runs/t2 --checkpoints runs/classifiers\n"
     "  dg16m reproduce fig4 --out runs/fig4 --objects 20 --workers 2\n"
@@ -112,7 +112,11 @@ def register_reproduce(subparsers: Any) -> None:
     for parser in (t3, t2):
         add_benchmark_arguments(parser)
         parser.add_argument(
-            "--limit", type=int, default=None, help="only the first N objects of each family"
+            "--limit",
+            type=int,
+            default=None,
+            help="only the first N objects of each category (a family; a real object's catalogue "
+            "category)",
         )
         parser.add_argument("--k", type=int, default=10, help="dual grasps per object (10)")
     for parser in (t3, f4):

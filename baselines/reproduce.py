@@ -14,8 +14,9 @@
   :func:`baselines.classifier_data.da2_passed`); histograms and ROC AUC. The JSON adds DA2's own
   quality (1 - l8b) split by its rule and the two verdicts' agreement.
 
-``limit`` runs a table on the first objects of each family only (a tiny configuration for tests
-and a quick look); the numbers then carry wide intervals.
+``limit`` runs a table on the first objects of each category only (a procedural object's family,
+a real object's catalogue category; a tiny configuration for tests and a quick look); the numbers
+then carry wide intervals, and a table whose intervals rest on one object says so.
 """
 
 from __future__ import annotations
@@ -89,23 +90,37 @@ def limited_benchmark(
     out: Path, limit: int | None, benchmark: Any = None, mesh_root: Any = None
 ) -> BenchmarkRef:
     """The benchmark (with ``mesh_root``, the folder of a mesh benchmark's meshes when the file
-    does not carry them), or (``limit``) one of its first ``limit`` objects per family (mesh
-    objects are one family) written to ``out/benchmark-<limit>.h5``."""
+    does not carry them), or (``limit``) its first ``limit`` objects per category written to
+    ``out/benchmark-<limit>.h5``. A category is an object's family, or for the real benchmark's
+    meshes (no family) its catalogue category in the real split
+    (:meth:`~dg16m_env.benchmark.ref.BenchmarkRef.categories`); mesh objects of no known category
+    are one category."""
     ref = load_benchmark_ref(benchmark, mesh_root)
     if limit is None:
         return ref
     if limit < 1:
-        raise ReproduceError(f"limit: expected objects per family >= 1, found {limit}")
+        raise ReproduceError(f"limit: expected objects per category >= 1, found {limit}")
     taken: dict[str, int] = {}
     ids = []
-    for obj in ref.benchmark.objects:
-        if taken.get(obj.family, 0) < limit:
-            taken[obj.family] = taken.get(obj.family, 0) + 1
+    for obj, category in zip(ref.benchmark.objects, ref.categories(), strict=True):
+        if taken.get(category, 0) < limit:
+            taken[category] = taken.get(category, 0) + 1
             ids.append(obj.object_id)
     path = out / f"benchmark-{limit}.h5"
     with atomic_path(path) as tmp:
         write_benchmark(tmp, ref.benchmark.select_objects(ids))
     return load_benchmark_ref(path, ref.mesh_root)
+
+
+def one_object_note(objects: int) -> str | None:
+    """A note when the intervals rest on one object (resampling one object gives ``[x, x]``:
+    no interval at all), else None."""
+    if objects == 1:
+        return (
+            "note: every interval rests on one object (resampling one object cannot vary); "
+            "use a larger --limit for intervals"
+        )
+    return None
 
 
 def table3(
@@ -165,11 +180,18 @@ def table3(
         "GSR % (ours, gravity)",
         "GSR % (paper)",
     ]
+    note = one_object_note(len(ref.object_ids))
+    if note is not None:
+        rows.append([note, "", "", "", "", ""])
+        if progress:
+            print(note)
     _write_table(out, "table3", header, rows)
     payload = {
         "table": "III",
         "benchmark": ref.record(),
         "objects": len(ref.object_ids),
+        "categories": sorted(set(ref.categories())),
+        "note": note,
         "k": k,
         "seed": seed,
         "paper": PAPER_TABLE3,

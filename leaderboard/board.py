@@ -382,7 +382,15 @@ class Board:
         return self.jobs.holds(claim)
 
     def finish(self, claim: Claim, results: Mapping[str, Any], log: str) -> bool:
-        """Store a claim's results (see :meth:`Queue.finish`); False when the claim was lost."""
+        """Store a claim's results (see :meth:`Queue.finish`); False when the claim was lost.
+
+        Raises:
+            BoardError: a result of only some of the benchmark's objects (``dg16m evaluate
+                --objects / --limit``, marked partial), or of another number of objects than
+                the board's benchmark holds: the board never ranks such a result.
+        """
+        for name, result in results.items():
+            check_full_result(name, result, len(self.benchmark.object_ids))
         return self.jobs.finish(claim, results, log)
 
     def fail(self, claim: Claim, error: str, log: str) -> bool:
@@ -420,6 +428,34 @@ class Board:
     def scored_page(self, evaluator: str, offset: int, limit: int) -> list[sqlite3.Row]:
         """One page of an evaluator's ranked results (see :meth:`Results.scored_page`)."""
         return self.rows.scored_page(evaluator, offset, limit)
+
+
+def check_full_result(name: str, result: Any, n_objects: int) -> None:
+    """Refuse a result that did not score the whole benchmark (see :meth:`Board.finish`).
+
+    Args:
+        name: the evaluator's name.
+        result: an :class:`~dg16m_env.evaluators.EvaluationResult` (or anything with
+            ``to_dict()``).
+        n_objects: the board's benchmark's number of objects.
+
+    Raises:
+        BoardError: a partial result.
+    """
+    record = result.to_dict().get("benchmark") if hasattr(result, "to_dict") else None
+    if not isinstance(record, Mapping) or not record:
+        return  # a result without a benchmark record (e.g. a policy's): nothing to check
+    objects = record.get("objects")
+    if (
+        record.get("partial")
+        or record.get("subset")
+        or (isinstance(objects, int) and objects != n_objects)
+    ):
+        raise BoardError(
+            f"{name}: expected a result over the benchmark's {n_objects} objects, found a "
+            f"partial one ({objects} objects, from 'dg16m evaluate --objects/--limit'): the "
+            "board never ranks partial results; score the whole benchmark"
+        )
 
 
 def _identity(path: str | os.PathLike[str]) -> tuple[int, int, int, int] | None:

@@ -362,7 +362,12 @@ def score_claim(
     results, error = outcome
     if error is None:
         log("scored")
-        stored = board.finish(claim, results, log.text)
+        try:
+            stored = board.finish(claim, results, log.text)
+        except BoardError as exc:  # e.g. a partial result: never ranked
+            log(f"error: {exc}")
+            error = (str(exc) or type(exc).__name__)[:ERROR_CHARS]
+            stored = board.fail(claim, error, log.text)
     else:
         stored = board.fail(claim, error, log.text)
     if not stored:

@@ -5,6 +5,7 @@ command line. The logic lives in :mod:`dg16m_env.evaluators`, :mod:`dg16m_env.su
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,11 @@ EVALUATE_EXAMPLES = (
     "  # score a submission file: force-closure efficiency and simulated success\n"
     "  dg16m evaluate runs/refs/force_closure.h5 --evaluators fce,gsr --workers 2 "
     "--out runs/fc.json\n"
+    "  # a quick look: 5 objects of the real benchmark (the result says it is partial)\n"
+    "  dg16m evaluate --predictor baselines.pairing:force_closure_baseline --evaluators fce,gsr "
+    "--benchmark real --limit 5\n"
+    "  # after Ctrl-C: finished evaluators were kept in --out; skip them\n"
+    "  dg16m evaluate runs/refs/force_closure.h5 --out runs/fc.json --resume\n"
     "  # run your predictor (a function observation -> dual grasps) in a sandboxed process\n"
     "  dg16m evaluate --predictor my_grasps.py:predict --save-submission runs/mine.h5\n"
     "  # rank the benchmark's candidates with a classifier (the paper's Table II protocol)\n"
@@ -61,6 +67,48 @@ def add_benchmark_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--mesh-root", type=Path, default=None, help="folder of a mesh benchmark's meshes"
+    )
+
+
+def add_subset_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--objects`` and ``--limit``: score a few of the benchmark's objects (a partial run)."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument(
+        "--objects",
+        metavar="IDS",
+        default=None,
+        help="only these objects: comma-separated ids, or a file with one id a line; the "
+        "submission must hold exactly them and the result is marked partial (never ranked)",
+    )
+    group.add_argument(
+        "--limit",
+        type=int,
+        default=None,
+        metavar="N",
+        help="only the benchmark's first N objects (a partial run, as --objects)",
+    )
+
+
+def subset_of(ref: Any, args: argparse.Namespace) -> Any:
+    """``ref`` restricted to ``--objects`` / ``--limit`` (unchanged without them).
+
+    Raises:
+        BenchmarkError: unknown or repeated ids, ``--limit`` < 1.
+    """
+    from dg16m_env.benchmark.ref import parse_object_ids
+
+    if getattr(args, "objects", None) is not None:
+        return ref.subset(parse_object_ids(args.objects))
+    if getattr(args, "limit", None) is not None:
+        return ref.first(args.limit)
+    return ref
+
+
+def partial_note(ref: Any) -> str:
+    """One line saying a run scores only some of the benchmark's objects."""
+    return (
+        f"partial run: {len(ref.object_ids)} of the benchmark's {ref.full_objects} objects "
+        "(results are marked partial; the leaderboard never ranks them)"
     )
 
 
@@ -129,7 +177,21 @@ def register(subparsers: Any) -> None:
         help="a callable observation -> action or an SB3 model (trusted, in process)",
     )
     add_benchmark_arguments(ev)
-    ev.add_argument("--out", type=Path, default=None, help="write the results as JSON here")
+    add_subset_arguments(ev)
+    ev.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="write the results as JSON here (rewritten atomically as each evaluator finishes, "
+        "so Ctrl-C keeps the finished ones)",
+    )
+    ev.add_argument(
+        "--resume",
+        action="store_true",
+        help="keep the results --out already holds for the same subject (sha256), benchmark "
+        "(sha256 and objects), seeds, parameters and evaluator and package versions, and run "
+        "only the others (a --predictor run also reuses the submission it wrote)",
+    )
     ev.add_argument("--workers", type=int, default=1, help="local processes (default 1)")
     ev.add_argument("--backend", choices=("local", "ray"), default="local")
     ev.add_argument("--address", default=None, help="Ray address: auto or host:port")
@@ -174,6 +236,7 @@ def register(subparsers: Any) -> None:
     )
     validate.add_argument("file", type=Path)
     add_benchmark_arguments(validate)
+    add_subset_arguments(validate)
     validate.set_defaults(handler=_validate)
 
     make = add_command(
@@ -214,12 +277,7 @@ def _names(text: str | None, default: str) -> list[str]:
 
 def _evaluate(args: argparse.Namespace) -> int:
     from dg16m_env import evaluators
-    from dg16m_env.evaluators import (
-        load_benchmark_ref,
-        make,
-        submission_evaluators,
-        write_results,
-    )
+    from dg16m_env.evaluators import load_benchmark_ref, make
 
     if args.list:
         for name in evaluators.names():
@@ -243,6 +301,21 @@ def _evaluate(args: argparse.Namespace) -> int:
             f"--simulator {simulator.name}: expected a submission or --predictor (the gsr "
             f"evaluator runs trials), found --{kind}"
         )
+    subset = (
+        "--objects" if args.objects is not None else "--limit" if args.limit is not None else None
+    )
+    if subset is not None and kind == "policy":
+        raise EvaluateCommandError(
+            f"{subset}: expected a submission, --predictor or --classifier (scored on benchmark "
+            "objects), found --policy (episodes of an environment)"
+        )
+    if args.resume and args.out is None:
+        raise EvaluateCommandError("--resume: expected --out RESULTS.json to resume, found none")
+    if args.resume and kind not in ("submission", "predictor"):
+        raise EvaluateCommandError(
+            f"--resume: expected a submission file or --predictor (a subject with a sha256), "
+            f"found --{kind}"
+        )
     progress = not args.no_progress
     started = time.perf_counter()
     results: dict[str, Any] = {}
@@ -251,40 +324,167 @@ def _evaluate(args: argparse.Namespace) -> int:
         if args.env_id is None:
             raise EvaluateCommandError("--policy: expected --env-id, found none")
         policy = _load_trusted(args.policy)
+        record["target"] = args.policy
         for name in _names(args.evaluators, "policy"):
             ev = make(name, env_id=args.env_id, n_episodes=args.episodes, seed=args.seed)
             results[name] = ev.evaluate(policy)
-        record["target"] = args.policy
+            _save(args.out, results, record)
     else:
-        ref = load_benchmark_ref(args.benchmark, args.mesh_root)
+        ref = subset_of(load_benchmark_ref(args.benchmark, args.mesh_root), args)
+        if ref.partial:
+            record.update(
+                {"partial": True, "objects": {"subset": ref.object_ids, "of": ref.full_objects}}
+            )
+            print(partial_note(ref))
         if kind == "classifier":
             classifier = _load_trusted(args.classifier)
+            record["target"] = args.classifier
             for name in _names(args.evaluators, "classifier"):
                 ev = make(name, benchmark=ref, k=args.k, seed=args.seed, progress=progress)
                 results[name] = ev.evaluate(classifier)
-            record["target"] = args.classifier
+                _save(args.out, results, record)
         else:
-            submission = _submission_subject(args, ref, kind, progress)
-            record.update({"file": str(submission), "target": args.predictor})
-            built = submission_evaluators(
-                _names(args.evaluators, "fce,gsr"),
-                ref,
-                workers=args.workers,
-                backend=args.backend,
-                address=args.address,
-                seed=args.seed,
-                n_perturbations=args.perturbations,
-                progress=progress,
-                simulator=simulator,
-            )
-            results = {name: ev.evaluate(submission) for name, ev in built.items()}
+            results = _score_submission(args, ref, kind, record, simulator, progress)
     for result in results.values():
         print(result.format())
     print(f"scored in {time.perf_counter() - started:.1f} s")
+    if record.get("partial"):
+        objects = record["objects"]
+        print(
+            f"PARTIAL: {len(objects['subset'])} of {objects['of']} objects; not comparable with "
+            "full results, and the leaderboard refuses it"
+        )
     if args.out is not None:
-        write_results(args.out, results, record)
+        _save(args.out, results, record)
         print(f"wrote {args.out}")
     return 0
+
+
+def _save(out: Path | None, results: dict[str, Any], record: dict[str, Any]) -> None:
+    """Write what is finished so far (atomically), so that an interrupt keeps it."""
+    if out is not None:
+        from dg16m_env.evaluators import write_results
+
+        write_results(out, results, record)
+
+
+def _stored(out: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``--resume``: the subject record and results ``out`` holds (nothing when it is absent)."""
+    from dg16m_env.evaluators.result import read_results_file
+
+    if not out.exists():
+        print(f"--resume: nothing to resume in {out} (no such file): running every evaluator")
+        return {}, {}
+    return read_results_file(out)
+
+
+def _score_submission(
+    args: argparse.Namespace,
+    ref: Any,
+    kind: str,
+    record: dict[str, Any],
+    simulator: Any,
+    progress: bool,
+) -> dict[str, Any]:
+    """Score a submission file (given, or made by ``--predictor``) with each evaluator, writing
+    ``--out`` after each; with ``--resume``, results ``--out`` already holds for the same run
+    are kept and not scored again."""
+    from dataset_gen.hashing import file_sha256
+    from dg16m_env.evaluators import submission_evaluators
+
+    stored_subject, stored = _stored(args.out) if args.resume else ({}, {})
+    submission = _reusable_submission(args, ref, stored_subject) if kind == "predictor" else None
+    if submission is None:
+        submission = _submission_subject(args, ref, kind, progress)
+    sha256 = file_sha256(submission)
+    record.update({"file": str(submission), "target": args.predictor, "sha256": sha256})
+    built = submission_evaluators(
+        _names(args.evaluators, "fce,gsr"),
+        ref,
+        workers=args.workers,
+        backend=args.backend,
+        address=args.address,
+        seed=args.seed,
+        n_perturbations=args.perturbations,
+        progress=progress,
+        simulator=simulator,
+    )
+    results: dict[str, Any] = {}
+    for name, ev in built.items():
+        if name in stored:
+            _check_resumable(args.out, name, stored[name], ev.planned(), sha256)
+            results[name] = stored[name]
+            print(f"{name}: kept from {args.out} (finished in an earlier run; --resume)")
+    if results or kind == "predictor":  # a predictor's submission is recorded for a resume
+        _save(args.out, results, record)
+    for name, ev in built.items():
+        if name in results:
+            continue
+        try:
+            results[name] = ev.evaluate(submission)
+        except KeyboardInterrupt:
+            if results and args.out is not None:
+                print(
+                    f"interrupted during {name}: kept {', '.join(results)} in {args.out}; "
+                    "rerun with --resume to skip them",
+                    file=sys.stderr,
+                )
+            raise
+        _save(args.out, results, record)
+    return results
+
+
+def _check_resumable(
+    out: Path, name: str, result: Any, planned: dict[str, Any] | None, sha256: str
+) -> None:
+    """Refuse to keep a stored result of another run (another subject, benchmark, subset,
+    seeds, parameters or versions): mixing runs in one file would be a wrong result."""
+    from dataset_gen.json_values import json_ready
+
+    stored = result.to_dict()
+    found = stored.get("subject", {}).get("sha256")
+    differences = (
+        [] if found == sha256 else [f"subject sha256 {str(found)[:12]} (expected {sha256[:12]})"]
+    )
+    if planned is None:
+        differences.append("an evaluator that cannot tell its run before scoring")
+    else:
+        for key, value in json_ready(planned).items():
+            if stored.get(key) != value:
+                differences.append(f"another {key}")
+    if differences:
+        raise EvaluateCommandError(
+            f"--resume: expected {out}'s {name} result to be of this run, found "
+            f"{'; '.join(differences)}; remove the file or choose another --out"
+        )
+
+
+def _reusable_submission(
+    args: argparse.Namespace, ref: Any, stored_subject: dict[str, Any]
+) -> Path | None:
+    """``--resume`` of a ``--predictor`` run: the submission the earlier run wrote, when it
+    was made by the same predictor for the same objects and is unchanged (its sha256)."""
+    from dataset_gen.hashing import file_sha256
+
+    file, sha256 = stored_subject.get("file"), stored_subject.get("sha256")
+    if not (isinstance(file, str) and isinstance(sha256, str)):
+        return None
+    wanted = args.save_submission or predictor_submission_path(args.out)
+    objects = stored_subject.get("objects")
+    same_objects = (objects or None) == (
+        {"subset": ref.object_ids, "of": ref.full_objects} if ref.partial else None
+    )
+    path = Path(file)
+    if (
+        stored_subject.get("target") != args.predictor
+        or not same_objects
+        or path.resolve() != Path(wanted).resolve()
+        or not path.is_file()
+        or file_sha256(path) != sha256
+    ):
+        return None
+    print(f"--resume: reusing the predictor's submission {path} (sha256 {sha256[:12]})")
+    return path
 
 
 def _predictor_spec(args: argparse.Namespace) -> Any:
@@ -354,7 +554,9 @@ def _validate(args: argparse.Namespace) -> int:
     # a file that cannot be read is bad input (exit 2); what opens is checked (problems: exit 1)
     with open_hdf5(args.file, "HDF5 submission file"):
         pass
-    ref = load_benchmark_ref(args.benchmark, args.mesh_root)
+    ref = subset_of(load_benchmark_ref(args.benchmark, args.mesh_root), args)
+    if ref.partial:
+        print(partial_note(ref))
     problems = validate_submission(
         args.file, object_ids=ref.object_ids, benchmark_sha256=ref.sha256, embedded=ref.embedded
     )

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -156,11 +157,16 @@ class ForceClosureEfficiency(SubmissionEvaluator):
             progress=progress,
         )
 
+    def run_parameters(self) -> dict[str, Any]:
+        """The force-closure parameters of the benchmark and the gripper."""
+        force_closure = self.ref.benchmark.parameters().force_closure_kwargs()
+        return {"force_closure": force_closure, "gripper": "panda"}
+
     def evaluate(self, subject: Submission | str | os.PathLike[str]) -> EvaluationResult:
         submission, poses, index = self.rows(subject)
         ids = self.ref.object_ids
-        params = self.ref.benchmark.parameters()
-        force_closure = params.force_closure_kwargs()
+        parameters = self.run_parameters()
+        force_closure = parameters["force_closure"]
         mesh_root = str(self.ref.mesh_root) if self.ref.mesh_root is not None else None
         work = [
             _ObjectWork(obj, poses[index == k], mesh_root)
@@ -198,8 +204,8 @@ class ForceClosureEfficiency(SubmissionEvaluator):
         return self.result(
             benchmark=self.ref.record(),
             subject=submission_record(submission),
-            parameters={"force_closure": force_closure, "gripper": "panda"},
-            seeds={"resample": self.seed},
+            parameters=parameters,
+            seeds=self.run_seeds(),
             headline="fce",
             metrics=metrics,
             per_family=per_family,

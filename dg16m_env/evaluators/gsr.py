@@ -94,6 +94,19 @@ class GraspSuccessRate(SubmissionEvaluator):
         except ValueError as exc:
             raise EvaluatorError(f"gsr: {exc}") from None
 
+    def run_parameters(self) -> dict[str, Any]:
+        """The perturbations, the scene, the protocol and (when not C MuJoCo) the engine."""
+        return {
+            "perturbation": self.spec.to_dict(),
+            "scene": self.params.scene.to_dict(),
+            "protocol": self.params.protocol.to_dict(),
+            **({} if self.simulator.is_default else {"simulator": self.simulator.describe()}),
+        }
+
+    def run_seeds(self) -> dict[str, int]:
+        """The perturbations' seed and the confidence intervals' seed."""
+        return {"perturbation": self.spec.seed, "resample": self.seed}
+
     def evaluate(self, subject: Submission | str | os.PathLike[str]) -> EvaluationResult:
         submission, poses, index = self.rows(subject)
         ids = self.ref.object_ids
@@ -143,13 +156,8 @@ class GraspSuccessRate(SubmissionEvaluator):
         return self.result(
             benchmark=self.ref.record(),
             subject=submission_record(submission),
-            parameters={
-                "perturbation": self.spec.to_dict(),
-                "scene": self.params.scene.to_dict(),
-                "protocol": self.params.protocol.to_dict(),
-                **({} if self.simulator.is_default else {"simulator": self.simulator.describe()}),
-            },
-            seeds={"perturbation": self.spec.seed, "resample": self.seed},
+            parameters=self.run_parameters(),
+            seeds=self.run_seeds(),
             headline="gsr",
             metrics=metrics,
             per_family=per_family,

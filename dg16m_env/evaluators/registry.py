@@ -55,6 +55,14 @@ class Evaluator(abc.ABC):
     def __call__(self, subject: Any) -> EvaluationResult:
         return self.evaluate(subject)
 
+    def planned(self) -> dict[str, Any] | None:
+        """The fields every result of this evaluator, as configured, will hold whatever the
+        subject (``evaluator``, ``evaluator_version``, ``package_version``, ``benchmark``,
+        ``parameters``, ``seeds``), or None when it cannot tell before scoring. ``dg16m evaluate
+        --resume`` keeps a stored result only when these fields and the subject's sha256 match
+        it."""
+        return None
+
     def result(self, **fields: Any) -> EvaluationResult:
         """An :class:`EvaluationResult` of this evaluator: ``fields`` plus its name, its version
         and the package version."""

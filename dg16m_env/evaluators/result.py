@@ -70,6 +70,12 @@ class EvaluationResult:
     details: dict[str, Any] = field(default_factory=dict)
 
     @property
+    def partial(self) -> bool:
+        """Whether it scored only some of the benchmark's objects (``dg16m evaluate --objects``
+        / ``--limit``): such a result is never ranked beside full ones."""
+        return bool(self.benchmark.get("partial") or self.benchmark.get("subset"))
+
+    @property
     def score(self) -> float | None:
         """The headline rate (None when nothing was scored)."""
         value = self.metrics.get(self.headline)
@@ -109,6 +115,11 @@ class EvaluationResult:
             f"{self.evaluator} v{self.evaluator_version} (dg16m {self.package_version})"
             + (f", benchmark {self.benchmark['sha256'][:12]}" if self.benchmark else "")
         ]
+        if self.partial:
+            lines.append(
+                f"  PARTIAL: {self.benchmark.get('objects')} of the benchmark's "
+                f"{self.benchmark.get('of', '?')} objects (not comparable with a full score)"
+            )
         engine = (self.parameters or {}).get("simulator")
         if isinstance(engine, Mapping) and engine.get("name", "mujoco") != "mujoco":
             lines.append(f"  trials on MuJoCo Warp, device {engine.get('device', '?')}")
@@ -229,8 +240,10 @@ def write_results(
     results: Mapping[str, EvaluationResult],
     subject: Mapping[str, Any] | None = None,
 ) -> Path:
-    """Write several evaluators' results as one JSON file (atomically):
-    ``{"format", "version", "subject", "results": {name: result}}``."""
+    """Write several evaluators' results as one JSON file (atomically: a temporary file renamed
+    over ``path``, so a reader or an interrupt never sees half a file):
+    ``{"format", "version", "subject", "results": {name: result}}``. ``dg16m evaluate`` calls it
+    after each evaluator finishes, so an interrupted run keeps what was done."""
     payload = {
         "format": RESULTS_FORMAT,
         "version": RESULTS_VERSION,
@@ -247,6 +260,27 @@ def read_results(path: str | os.PathLike[str]) -> dict[str, EvaluationResult]:
     Raises:
         ResultError: not JSON, another format or version, or a malformed result.
     """
+    return {
+        name: EvaluationResult.from_dict(r) for name, r in _read_payload(path)["results"].items()
+    }
+
+
+def read_results_file(
+    path: str | os.PathLike[str],
+) -> tuple[dict[str, Any], dict[str, EvaluationResult]]:
+    """The subject record and the results :func:`write_results` wrote.
+
+    Raises:
+        ResultError: as :func:`read_results`.
+    """
+    data = _read_payload(path)
+    subject = data.get("subject")
+    results = {name: EvaluationResult.from_dict(r) for name, r in data["results"].items()}
+    return (dict(subject) if isinstance(subject, dict) else {}), results
+
+
+def _read_payload(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """A results file's JSON, its format, version and ``results`` mapping checked."""
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
@@ -260,4 +294,4 @@ def read_results(path: str | os.PathLike[str]) -> dict[str, EvaluationResult]:
     results = data.get("results")
     if not isinstance(results, dict):
         raise ResultError(f"{path}: expected a 'results' mapping, found {type(results).__name__}")
-    return {name: EvaluationResult.from_dict(r) for name, r in results.items()}
+    return data

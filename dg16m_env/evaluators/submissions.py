@@ -104,6 +104,30 @@ class SubmissionEvaluator(Evaluator):
         self.workers, self.backend, self.address = workers, backend, address
         self.n_resamples, self.seed, self.progress = n_resamples, seed, progress
 
+    def run_parameters(self) -> dict[str, Any]:
+        """Every argument that can change a score (a result's ``parameters``)."""
+        raise NotImplementedError
+
+    def run_seeds(self) -> dict[str, int]:
+        """Every seed used, by name (a result's ``seeds``)."""
+        return {"resample": self.seed}
+
+    def planned(self) -> dict[str, Any]:
+        """See :meth:`Evaluator.planned`."""
+        from dataset_gen.io import package_version
+        from dataset_gen.json_values import json_ready
+
+        return json_ready(
+            {
+                "evaluator": self.name,
+                "evaluator_version": self.version,
+                "package_version": package_version(),
+                "benchmark": self.ref.record(),
+                "parameters": self.run_parameters(),
+                "seeds": self.run_seeds(),
+            }
+        )
+
     def rows(self, subject: Any) -> tuple[Submission, np.ndarray, np.ndarray]:
         """The validated submission and its dual grasps in benchmark object order (``poses
         (N, 2, 4, 4)``, ``object_index (N,)``; see :func:`as_submission`, :func:`stacked`)."""

@@ -73,6 +73,7 @@ import os
 import shutil
 import tempfile
 import time
+import warnings
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -297,7 +298,9 @@ def submission_from_predictor(
     max_grasps: int = 100,
     progress: bool = True,
 ) -> tuple[Path, PredictorRun]:
-    """Run a predictor on every benchmark object and write its submission file atomically.
+    """Run a predictor on every benchmark object (every object of a subset ref,
+    :meth:`~dg16m_env.benchmark.ref.BenchmarkRef.subset`, and only those) and write its
+    submission file atomically.
 
     Each object's observation (:func:`dg16m_env.subjects.observation.object_observation` with
     ``n_points`` and ``seed``) is built just before it is needed. An object the predictor failed
@@ -331,7 +334,7 @@ def submission_from_predictor(
     from dg16m_env.benchmark.ref import load_benchmark_ref
     from dg16m_env.subjects.observation import ObservationError
     from dg16m_env.subjects.submission import EMBEDDED
-    from dg16m_env.subjects.submission_writer import write_submission
+    from dg16m_env.subjects.submission_writer import PartialSubmissionWarning, write_submission
 
     check_integer("n_points", n_points, minimum=1, error=ObservationError)
     check_integer("seed", seed, minimum=0, error=ObservationError)
@@ -355,11 +358,16 @@ def submission_from_predictor(
         "time_limit_s": spec.time_limit_s,
         "memory_limit_mb": spec.memory_limit_mb,
     }
-    path = write_submission(
-        out_path,
-        poses,
-        scores=run.scores,
-        benchmark=EMBEDDED if ref.embedded else ref.sha256,
-        metadata=metadata,
-    )
+    if ref.partial:
+        metadata["objects"] = {"subset": ref.object_ids, "of": ref.full_objects}
+    with warnings.catch_warnings():
+        if ref.partial:  # asked for: a subset of the benchmark (``dg16m evaluate --limit``)
+            warnings.simplefilter("ignore", PartialSubmissionWarning)
+        path = write_submission(
+            out_path,
+            poses,
+            scores=run.scores,
+            benchmark=EMBEDDED if ref.embedded else ref.sha256,
+            metadata=metadata,
+        )
     return path, run
