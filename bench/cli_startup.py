@@ -28,6 +28,8 @@ import sys
 import time
 from pathlib import Path
 
+from dataset_gen.atomic import write_text_atomic
+
 TARGET_HELP_S = 0.5
 """``dg16m --help`` on a quiet machine (s)."""
 
@@ -77,7 +79,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"dg16m --help: {verdict} the {TARGET_HELP_S} s target")
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({"runs": args.runs, "load": load, "rows": rows}, indent=2))
+        write_text_atomic(
+            args.json, json.dumps({"runs": args.runs, "load": load, "rows": rows}, indent=2)
+        )
     return 0
 
 

@@ -20,6 +20,36 @@ Ends with the medians over objects against the 500 env steps/s target.
     nice -n 19 .venv/bin/python bench/env_lift.py                      # 10 objects, ~1-2 min
     .venv/bin/python bench/env_lift.py --objects table-1000000 --episodes 2 --random-episodes 1
     .venv/bin/python bench/env_lift.py --json runs/env_lift.json
+
+``--speed`` (issue 40) compares this tree with a *reference* tree (``--reference DIR``; default:
+a temporary ``git worktree`` of ``HEAD``, removed afterwards), each measurement in fresh
+subprocesses whose ``PYTHONPATH`` picks the tree, the two trees alternating ``--rounds`` times
+(medians; the machine is noisy, read the ratios):
+
+* **random** / **scripted**: steps/s of ``env.step`` of one ``gym.make`` environment (random
+  actions without a target; :class:`~dg16m_env.envs.lift_expert.ScriptedLiftPolicy` with the
+  benchmark's target), seeded: both trees run the same episodes when their behaviour is the
+  same (checked: a sha256 of every observation and reward);
+* **vector**: a 2-worker ``gymnasium.vector.AsyncVectorEnv`` (what ``gym.make_vec(...,
+  vectorization_mode="async")`` makes) against one env of the same tree in the same subprocess
+  (random actions, one object, autoreset included in both), with the workers left to the
+  scheduler and pinned to a core each; and the same ratios for an environment that only burns
+  the step time just measured (what two workers can gain on this machine at that moment);
+* **make**: ``gym.make`` of the procedural and of the real benchmark in a fresh process
+  (the environment module's import included), then the first ``reset``;
+* **render**: the first 240x180 ``rgb_array`` frame and the next ones (one step between).
+
+    .venv/bin/python bench/env_lift.py --speed                        # ~4 min on 2 cores
+    .venv/bin/python bench/env_lift.py --speed --reference /tmp/lift_ref --rounds 5 --json x.json
+
+``--timesteps 0.002,0.005,0.01`` (a study for a later version, not what v0 does): the scripted
+expert with the benchmark's target on the same seeded episodes with the scene's timestep
+changed (so fewer physics substeps per 50 ms control step): successes, unstable endings, time
+in ``mj_step`` and in ``env.step`` per control step (CPU time), and the deepest contact
+penetration after each step (p99 and max over the steps), the timesteps alternating episode by
+episode.
+
+    .venv/bin/python bench/env_lift.py --timesteps 0.002,0.005,0.01 --episodes 30
 """
 
 from __future__ import annotations
@@ -32,17 +62,25 @@ for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUM
 
 import argparse
 import contextlib
+import functools
+import hashlib
+import json
+import math
+import subprocess
+import sys
+import tempfile
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import gymnasium
 import mujoco
 import numpy as np
 
 from dataset_gen.atomic import write_json_atomic
-from dg16m_env.envs.dual_grasp_lift import ACTION_SIZE, DualGraspLiftEnv
+from dg16m_env.envs.dual_grasp_lift import ACTION_SIZE, CONTROL_HZ, DualGraspLiftEnv
 from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
 from dg16m_env.envs.objects import BenchmarkObjects
 
@@ -188,6 +226,426 @@ def measure(
     }
 
 
+# --------------------------------------------------------------------------------------------
+# --speed: this tree against a reference tree (issue 40)
+# --------------------------------------------------------------------------------------------
+
+LIFT_ID = "dg16m_env/DualGraspLift-v0"
+VECTOR_OBJECT = "table-1000000"
+RENDER_SIZE = (240, 180)
+
+
+def _lift(**kwargs: Any) -> Any:
+    import gymnasium as gym
+
+    import dg16m_env  # noqa: F401  (registers the environments)
+
+    return gym.make(LIFT_ID, **kwargs)
+
+
+def serve_episodes() -> None:
+    """Subprocess side of :func:`paired_steps`: one ``gym.make`` environment per kind; each
+    input line ``{"kind": "random" | "scripted", "seed": s}`` runs one seeded episode (up to
+    the registered 200 steps) and prints ``{"steps", "elapsed" (s of env.step only), "sha256"
+    (every observation and reward)}``."""
+    envs: dict[str, Any] = {}
+    for line in sys.stdin:
+        order = json.loads(line)
+        kind, seed = order["kind"], int(order["seed"])
+        scripted = kind == "scripted"
+        if kind not in envs:
+            envs[kind] = _lift(target_grasp="benchmark") if scripted else _lift()
+        env = envs[kind]
+        env.action_space.seed(seed)
+        obs, _ = env.reset(seed=seed)
+        policy = ScriptedLiftPolicy() if scripted else None
+        h = hashlib.sha256()
+        elapsed, steps, done = 0.0, 0, False
+        while not done:
+            action = policy(obs) if policy is not None else env.action_space.sample()
+            t0 = time.perf_counter()
+            obs, reward, terminated, truncated, _ = env.step(action)
+            elapsed += time.perf_counter() - t0
+            h.update(obs.tobytes())
+            h.update(np.float64(reward).tobytes())
+            steps += 1
+            done = terminated or truncated
+        print(json.dumps({"steps": steps, "elapsed": elapsed, "sha256": h.hexdigest()}))
+        sys.stdout.flush()
+
+
+def paired_steps(trees: dict[str, Path], kind: str, seeds: list[int], rounds: int) -> dict:
+    """Steps/s of ``env.step`` of one environment per tree, each in its own long-lived
+    subprocess (:func:`serve_episodes`), the trees alternating episode by episode (the first
+    swapped every episode) so that both see the same machine; the same seeded episodes in both
+    (compared by hash). The objects are compiled in a first, untimed round."""
+    procs = {
+        name: subprocess.Popen(
+            [sys.executable, str(Path(__file__).resolve()), "--probe", "serve"],
+            env=dict(os.environ, PYTHONPATH=str(tree)),
+            cwd=tree,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        for name, tree in trees.items()
+    }
+
+    def episode(name: str, seed: int) -> dict[str, Any]:
+        proc = procs[name]
+        assert proc.stdin is not None
+        assert proc.stdout is not None
+        proc.stdin.write(json.dumps({"kind": kind, "seed": seed}) + "\n")
+        proc.stdin.flush()
+        return json.loads(proc.stdout.readline())
+
+    try:
+        for seed in seeds:  # warm-up: compile each object in both
+            for name in procs:
+                episode(name, seed)
+        totals = {name: [0.0, 0] for name in procs}
+        ratios, same = [], True
+        names = list(procs)
+        for r in range(rounds):
+            for i, seed in enumerate(seeds):
+                got = {}
+                for name in names if (i + r) % 2 == 0 else names[::-1]:
+                    got[name] = episode(name, seed)
+                    totals[name][0] += got[name]["elapsed"]
+                    totals[name][1] += got[name]["steps"]
+                same &= len({g["sha256"] for g in got.values()}) == 1
+                a, b = (got[n]["steps"] / got[n]["elapsed"] for n in names)
+                ratios.append(a / b)
+    finally:
+        for proc in procs.values():
+            assert proc.stdin is not None
+            proc.stdin.close()
+            proc.wait()
+    return {
+        "steps_per_s": {name: steps / elapsed for name, (elapsed, steps) in totals.items()},
+        "steps": {name: steps for name, (_, steps) in totals.items()},
+        "speed_up": float(np.median(ratios)),
+        "same_episodes": same,
+    }
+
+
+class _Burn(gymnasium.Env):  # type: ignore[type-arg]
+    """A Lift-shaped environment whose step only burns ``seconds`` of CPU: what a 2-worker
+    vector env can gain on this machine for that step time."""
+
+    observation_space = gymnasium.spaces.Box(-1.0, 1.0, (71,), np.float32)
+    action_space = gymnasium.spaces.Box(-1.0, 1.0, (ACTION_SIZE,), np.float32)
+
+    def __init__(self, seconds: float) -> None:
+        self.seconds = seconds
+
+    def reset(self, *, seed: int | None = None, options: Any = None) -> Any:
+        super().reset(seed=seed)
+        return np.zeros(71, np.float32), {}
+
+    def step(self, action: Any) -> Any:
+        end = time.process_time() + self.seconds
+        while time.process_time() < end:
+            pass
+        return np.zeros(71, np.float32), 0.0, False, False, {}
+
+
+def _pinned(make: Callable[[], Any], cpu: int) -> Any:
+    """``make()`` in a process pinned to ``cpu`` (called in a vector env's worker)."""
+    os.sched_setaffinity(0, {cpu % (os.cpu_count() or 1)})
+    return make()
+
+
+def probe_vector(steps: int, seed: int) -> dict[str, Any]:
+    """Total steps/s of a 2-worker async vector env against one env (same tree, same object,
+    random actions, autoreset in both), with the workers left to the scheduler and pinned to
+    one core each; and the same for :class:`_Burn` at the step time just measured. The
+    variants alternate (3 rounds), so that each ratio's runs see the same machine."""
+
+    def one(make: Callable[[], Any]) -> float:
+        env = make()
+        env.action_space.seed(seed)
+        env.reset(seed=seed)
+        for _ in range(20):  # warm-up (the object is compiled at the first reset)
+            env.step(env.action_space.sample())
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+            if terminated or truncated:
+                env.reset()
+        rate = steps / (time.perf_counter() - t0)
+        env.close()
+        return rate
+
+    def vec(make: Callable[[], Any], pin: bool) -> float:
+        fns = [functools.partial(_pinned, make, k) if pin else make for k in range(2)]
+        env = gymnasium.vector.AsyncVectorEnv(fns)
+        env.action_space.seed(seed)
+        env.reset(seed=seed)
+        for _ in range(20):
+            env.step(env.action_space.sample())
+        t0 = time.perf_counter()
+        for _ in range(steps // 2):
+            env.step(env.action_space.sample())
+        rate = 2 * (steps // 2) / (time.perf_counter() - t0)
+        env.close()
+        return rate
+
+    lift = functools.partial(_lift, object_ids=[VECTOR_OBJECT])
+    keys = ("single", "vector", "pinned", "burn_single", "burn_vector", "burn_pinned")
+    runs: dict[str, list[float]] = {k: [] for k in keys}
+    pin = hasattr(os, "sched_setaffinity") and (os.cpu_count() or 1) >= 2
+    for _ in range(3):
+        runs["single"].append(one(lift))
+        runs["vector"].append(vec(lift, False))
+        runs["pinned"].append(vec(lift, True) if pin else float("nan"))
+        burn = functools.partial(_Burn, 1.0 / runs["single"][-1])  # the step time just measured
+        runs["burn_single"].append(one(burn))
+        runs["burn_vector"].append(vec(burn, False))
+        runs["burn_pinned"].append(vec(burn, True) if pin else float("nan"))
+    r = {k: np.array(v) for k, v in runs.items()}
+    return {
+        "single_steps_per_s": float(np.median(r["single"])),
+        "vector_steps_per_s": float(np.median(r["vector"])),
+        "ratio": float(np.median(r["vector"] / r["single"])),
+        "pinned_ratio": float(np.median(r["pinned"] / r["single"])),
+        "burn_ratio": float(np.median(r["burn_vector"] / r["burn_single"])),
+        "burn_pinned_ratio": float(np.median(r["burn_pinned"] / r["burn_single"])),
+        "runs": runs,
+    }
+
+
+MAKE_CODE = """
+import json, sys, time
+t0 = time.perf_counter()
+import gymnasium as gym
+import dg16m_env
+t1 = time.perf_counter()
+env = gym.make("dg16m_env/DualGraspLift-v0", benchmark=sys.argv[1])
+t2 = time.perf_counter()
+env.reset(seed=0)
+t3 = time.perf_counter()
+env.close()
+print(json.dumps({"import_s": t1 - t0, "make_s": t2 - t1, "reset_s": t3 - t2}))
+"""
+"""Seconds of ``gym.make`` in a fresh process that imported only gymnasium and ``dg16m_env``
+(the environment module's import is part of ``gym.make``), then of the first reset."""
+
+
+def probe_render(frames: int, benchmark: str) -> dict[str, Any]:
+    """Seconds of the first ``rgb_array`` frame and the median of the next ones."""
+    width, height = RENDER_SIZE
+    env = _lift(render_mode="rgb_array", width=width, height=height, benchmark=benchmark)
+    env.action_space.seed(0)
+    env.reset(seed=0)
+    t0 = time.perf_counter()
+    frame = env.render()
+    first = time.perf_counter() - t0
+    h = hashlib.sha256(frame.tobytes())
+    times = []
+    for _ in range(frames):
+        env.step(env.action_space.sample())
+        t0 = time.perf_counter()
+        frame = env.render()
+        times.append(time.perf_counter() - t0)
+        h.update(frame.tobytes())
+    env.close()
+    return {"first_s": first, "next_s": float(np.median(times)), "sha256": h.hexdigest()}
+
+
+PROBES: dict[str, Callable[..., dict[str, Any]]] = {
+    "vector": probe_vector,
+    "render": probe_render,
+}
+
+
+def _run_probe(tree: Path, name: str, **kwargs: Any) -> dict[str, Any]:
+    """One probe in a fresh subprocess whose ``PYTHONPATH`` picks ``tree``."""
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    if name == "make":
+        command = [sys.executable, "-c", MAKE_CODE, kwargs["benchmark"]]
+    else:
+        command = [sys.executable, str(Path(__file__).resolve()), "--probe", name]
+        command += ["--probe-args", json.dumps(kwargs)]
+    out = subprocess.run(command, env=env, cwd=tree, check=True, capture_output=True, text=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@contextlib.contextmanager
+def _reference_tree(given: Path | None) -> Iterator[Path]:
+    if given is not None:
+        yield given.resolve()
+        return
+    repo = Path(__file__).resolve().parents[1]
+    with tempfile.TemporaryDirectory() as tmp:
+        tree = Path(tmp) / "ref"
+        subprocess.run(
+            ["git", "-C", str(repo), "worktree", "add", "--detach", str(tree), "HEAD"],
+            check=True,
+            capture_output=True,
+        )
+        try:
+            yield tree
+        finally:
+            subprocess.run(
+                ["git", "-C", str(repo), "worktree", "remove", "--force", str(tree)],
+                check=False,
+                capture_output=True,
+            )
+
+
+def speed(reference: Path | None, rounds: int, json_path: Path | None) -> int:
+    """The issue 40 table: each probe on both trees, alternating, medians and ratios."""
+    here = Path(__file__).resolve().parents[1]
+    cases: list[tuple[str, str, dict[str, Any], str]] = [
+        # (label, probe, kwargs, key: "" for the render probes' two times)
+        (
+            "2-worker async vector env (steps/s)",
+            "vector",
+            {"steps": 400, "seed": 0},
+            "vector_steps_per_s",
+        ),
+        ("gym.make procedural (s)", "make", {"benchmark": "procedural"}, "make_s"),
+        ("gym.make real (s)", "make", {"benchmark": "real"}, "make_s"),
+        ("render procedural (s)", "render", {"frames": 6, "benchmark": "procedural"}, ""),
+        ("render real (s)", "render", {"frames": 6, "benchmark": "real"}, ""),
+    ]
+    results: dict[str, Any] = {"date": time.strftime("%Y-%m-%d"), "rounds": rounds, "probes": {}}
+    with _reference_tree(reference) as ref:
+        results["reference"] = str(ref)
+        print(f"this tree {here}\nreference {ref}\n")
+        print(f"{'measurement':46s} {'this tree':>10s} {'reference':>10s} {'speed-up':>9s}")
+        for kind, seeds in (("random", list(range(6))), ("scripted", list(range(6)))):
+            label = f"one env, {kind} {'actions' if kind == 'random' else 'expert'} (steps/s)"
+            got = paired_steps({"this": here, "reference": ref}, kind, seeds, max(1, rounds // 2))
+            results["probes"][label] = got
+            rate = got["steps_per_s"]
+            print(
+                f"{label:46s} {rate['this']:10.1f} {rate['reference']:10.1f} "
+                f"{got['speed_up']:8.2f}x"
+            )
+            print(f"  {'same episodes in both trees':44s} {got['same_episodes']}")
+        for label, name, kwargs, key in cases:
+            runs: dict[str, list[dict[str, Any]]] = {"this": [], "reference": []}
+            for i in range(rounds):  # alternating, the first tree swapped every round
+                order = [("this", here), ("reference", ref)]
+                for side, tree in order if i % 2 == 0 else order[::-1]:
+                    runs[side].append(_run_probe(tree, name, **kwargs))
+            results["probes"][label] = runs
+            keys = [key] if key else ["first_s", "next_s"]
+            if name == "vector":
+                keys += ["single_steps_per_s", "ratio", "pinned_ratio", "burn_ratio"]
+                keys += ["burn_pinned_ratio"]
+            if not key:
+                print(label)
+            for k in keys:
+                mine = [r[k] for r in runs["this"]]
+                theirs = [r[k] for r in runs["reference"]]
+                higher = k.endswith("per_s") or "ratio" in k
+                # speed-up: the median of each round's pair (the two runs next to each other)
+                pairs = [a / b if higher else b / a for a, b in zip(mine, theirs, strict=True)]
+                row = label if k == key else f"  {k}"
+                print(
+                    f"{row:46s} {np.median(mine):10.3f} {np.median(theirs):10.3f} "
+                    f"{np.median(pairs):8.2f}x"
+                )
+            if "sha256" in runs["this"][0]:
+                same = len({r["sha256"] for r in runs["this"] + runs["reference"]}) == 1
+                print(f"  {'same episodes / frames in both trees':44s} {same}")
+    if json_path:
+        write_json_atomic(json_path, results)
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
+# --timesteps: fewer, longer physics steps (a study for a later version)
+# --------------------------------------------------------------------------------------------
+
+
+def _retimed(timestep: float) -> DualGraspLiftEnv:
+    """A v0 environment (target grasp from the benchmark) whose scene is compiled with another
+    timestep: the control rate stays 20 Hz, the substeps per control step follow."""
+    env = DualGraspLiftEnv(target_grasp="benchmark")
+    env.scene_parameters = replace(env.scene_parameters, timestep=timestep)
+    env.timestep = timestep
+    env.substeps = max(1, round(1.0 / (CONTROL_HZ * timestep)))
+    env.control_dt = env.substeps * timestep
+    env._fractions = np.arange(1, env.substeps + 1, dtype=np.float64) / env.substeps
+    env._fraction_column = env._fractions[:, None, None]
+    env.hold_steps = math.ceil(env.hold_time / env.control_dt - 1e-9)
+    return env
+
+
+def timestep_study(timesteps: list[float], episodes: int, json_path: Path | None) -> int:
+    envs = {dt: _retimed(dt) for dt in timesteps}
+    keys = ("successes", "unstable", "steps", "physics_s", "step_s")
+    stats: dict[float, dict[str, Any]] = {dt: dict.fromkeys(keys, 0) for dt in timesteps}
+    depths: dict[float, list[float]] = {dt: [] for dt in timesteps}
+    original = mujoco.mj_step
+    physics = [0.0]
+
+    def timed(model: mujoco.MjModel, data: mujoco.MjData, nstep: int = 1) -> None:
+        t0 = time.process_time()
+        original(model, data, nstep=nstep)
+        physics[0] += time.process_time() - t0
+
+    for seed in range(episodes):
+        for dt in timesteps if seed % 2 == 0 else timesteps[::-1]:
+            env, row = envs[dt], stats[dt]
+            obs, _ = env.reset(seed=seed)
+            policy = ScriptedLiftPolicy()
+            info: dict[str, Any] = {}
+            mujoco.mj_step = timed  # type: ignore[assignment]
+            try:
+                for _ in range(MAX_STEPS):
+                    action = policy(obs)
+                    physics[0] = 0.0
+                    t0 = time.process_time()
+                    obs, _, terminated, _, info = env.step(action)
+                    row["step_s"] += time.process_time() - t0
+                    row["physics_s"] += physics[0]
+                    row["steps"] += 1
+                    assert env._current is not None
+                    data = env._current.data
+                    if data.ncon:
+                        depths[dt].append(max(0.0, -float(data.contact.dist[: data.ncon].min())))
+                    if terminated:
+                        break
+            finally:
+                mujoco.mj_step = original  # type: ignore[assignment]
+            row["successes"] += int(bool(info.get("success")))
+            row["unstable"] += int(info.get("termination") == "unstable")
+    print(
+        f"{'timestep':>9s} {'substeps':>8s} {'success':>9s} {'unstable':>8s} "
+        f"{'mj_step us':>10s} {'env.step us':>11s} {'pen p99 mm':>10s} {'pen max mm':>10s}"
+    )
+    out = []
+    for dt in timesteps:
+        row = stats[dt]
+        d = np.array(depths[dt] or [0.0])
+        result = {
+            "timestep": dt,
+            "substeps": envs[dt].substeps,
+            "episodes": episodes,
+            "successes": row["successes"],
+            "unstable": row["unstable"],
+            "physics_us_per_step": 1e6 * row["physics_s"] / row["steps"],
+            "step_us_per_step": 1e6 * row["step_s"] / row["steps"],
+            "penetration_p99_mm": 1e3 * float(np.percentile(d, 99)),
+            "penetration_max_mm": 1e3 * float(d.max()),
+        }
+        out.append(result)
+        print(
+            f"{dt * 1e3:7.1f}ms {result['substeps']:8d} {row['successes']:4d}/{episodes:<4d} "
+            f"{row['unstable']:8d} {result['physics_us_per_step']:10.0f} "
+            f"{result['step_us_per_step']:11.0f} {result['penetration_p99_mm']:10.2f} "
+            f"{result['penetration_max_mm']:10.2f}"
+        )
+    if json_path:
+        write_json_atomic(json_path, {"timesteps": out})
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--objects", nargs="+", help="object ids (default: one per family)")
@@ -195,7 +653,28 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=4, help="scripted episodes per object")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", type=Path, help="also write the results here")
+    parser.add_argument(
+        "--speed", action="store_true", help="this tree against a reference tree (issue 40)"
+    )
+    parser.add_argument("--reference", type=Path, help="--speed: the reference tree (default HEAD)")
+    parser.add_argument("--rounds", type=int, default=5, help="--speed: alternations per probe")
+    parser.add_argument(
+        "--timesteps", help="study: comma-separated scene timesteps (s), scripted episodes"
+    )
+    parser.add_argument("--probe", help=argparse.SUPPRESS)  # one measurement, in a subprocess
+    parser.add_argument("--probe-args", default="{}", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.probe == "serve":
+        serve_episodes()
+        return 0
+    if args.probe:
+        print(json.dumps(PROBES[args.probe](**json.loads(args.probe_args))))
+        return 0
+    if args.speed:
+        return speed(args.reference, args.rounds, args.json)
+    if args.timesteps:
+        steps = [float(x) for x in args.timesteps.split(",")]
+        return timestep_study(steps, args.episodes, args.json)
     objects = args.objects or default_objects()
     print(
         f"{'object':30s} {'random/s':>9s} {'ref/s':>7s} {'ratio':>5s}  "

@@ -44,6 +44,8 @@ from typing import Any
 import h5py
 import numpy as np
 
+from dataset_gen.atomic import write_text_atomic
+
 # Keys of a result that record when, where and with what it ran, not what it measured (``file``:
 # the submission's path, in a scratch folder).
 VOLATILE_KEYS = {
@@ -173,7 +175,7 @@ def main() -> None:
     text = json.dumps(out, indent=2)
     print(text)
     if args.out:
-        args.out.write_text(text + "\n")
+        write_text_atomic(args.out, text + "\n")
 
 
 if __name__ == "__main__":

@@ -20,7 +20,8 @@ Start-up: building the parser imports every command module, so a command module 
 light things at its top (argparse, this module, :mod:`dataset_gen.errors`, small modules of
 constants) and its handlers import the rest when they run; a command whose options need a value
 of a heavy module adds them on first use (``add_command(..., arguments=...)``). ``dg16m --help``
-and ``dg16m --version`` then import no numpy, trimesh, MuJoCo, torch or Gymnasium
+and ``dg16m --version`` then import no trimesh, SciPy, h5py, MuJoCo, torch or Ray; Gymnasium
+(with numpy) comes in with the environments' package, which registers them on import
 (``tests/test_cli_startup.py``; ``bench/cli_startup.py`` times them).
 
 Exit status: 0 on success; ``dg16m`` without arguments prints this help and exits 0; errors

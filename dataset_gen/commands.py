@@ -30,7 +30,8 @@ def register(subparsers: Any) -> None:
         "Make, check and look at objects (the embedded procedural library or your meshes).",
         "  dg16m objects make --count 20 --seed 0 --out runs/objects\n"
         "  dg16m objects show runs/objects --out runs/objects.png\n"
-        "  dg16m objects check my_meshes/*.obj --scale 0.001\n",
+        "  dg16m objects check my_meshes/*.obj --scale 0.001\n"
+        "  dg16m objects repair my_meshes --out runs/my_meshes_repaired\n",
     )
     actions = objects.add_subparsers(dest="action", metavar="ACTION", required=True)
     _register_objects_make(actions)
@@ -38,6 +39,7 @@ def register(subparsers: Any) -> None:
     _register_objects_check(actions)
     _register_objects_decompose(actions)
     _register_objects_import_sweethome3d(actions)
+    _register_objects_repair(actions)
     _register_show(subparsers)
     _register_inspect(subparsers)
     _register_grippers(subparsers)
@@ -107,8 +109,11 @@ def _register_objects_check(actions: Any) -> None:
         "  dg16m objects check ../shared/data/real/acronym_mug_10f6e090.obj \\\n"
         "      --scale 0.000268 --allow-any-size   # a single-arm object\n",
         description=(
-            "Load mesh files as dg16m would and report size, mass properties and defects. A "
-            "longest side outside the plausible range of a dual-arm object (0.05-5 m) is an "
+            "Load mesh files as dg16m would and report size, mass properties and defects, and "
+            "whether each is a watertight solid or a shell (open, or in pieces that do not close "
+            "a volume) with what 'benchmark build' will do with it: a shell is simulated with "
+            "its mass spread over the surface and voxel-remeshed by CoACD; 'dg16m objects "
+            "repair' makes it a solid first. A longest side outside the plausible range of a dual-arm object (0.05-5 m) is an "
             "error that suggests a --scale (files in millimetres need --scale 0.001) unless "
             "--allow-any-size is given. Exit status: 0 when every mesh loads, 1 otherwise."
         ),
@@ -347,6 +352,147 @@ def _objects_import_sweethome3d(args: argparse.Namespace) -> int:
     return 1 if summary["failed"] else 0
 
 
+def _register_objects_repair(actions: Any) -> None:
+    add_command(
+        actions,
+        "repair",
+        "Repair your mesh files (any units, holes, pieces) into one watertight body each, in "
+        "metres, for 'benchmark build'.",
+        "  dg16m objects repair my_meshes --out runs/my_meshes_repaired\n"
+        "  dg16m objects repair cad_parts --out runs/parts --units mm --workers 2\n"
+        "  dg16m objects repair my_meshes/chair.obj --out runs/my_meshes_repaired --units cm\n"
+        "  dg16m objects repair scans --out runs/scans --target-extent 0.8\n"
+        "  dg16m benchmark build --meshes runs/my_meshes_repaired --out runs/mine\n",
+        description=_objects_repair_description,
+        arguments=_objects_repair_arguments,
+    )
+
+
+def _objects_repair_description() -> str:
+    from dataset_gen.objects import DUAL_ARM_MAX_EXTENT_M, DUAL_ARM_MIN_EXTENT_M
+    from dataset_gen.repair_meshes import INPUT_SUFFIXES, TYPICAL_EXTENT_M  # trimesh: on use
+
+    low, high = TYPICAL_EXTENT_M
+    return (
+        "Read mesh files (a folder of them, not recursive, or single files: "
+        f"{', '.join(s.lstrip('.').upper() for s in INPUT_SUFFIXES)}; COLLADA needs pycollada), "
+        "bring each to metres and rebuild it as the Sweet Home 3D importer does: one watertight "
+        "body (filled-voxel remesh, largest piece, Taubin smoothing, stepwise quadric "
+        "decimation), its deviation from the source measured both ways. A mesh that is already "
+        "one watertight body within the face budget is only scaled. Writes OUT/<stem>.obj and "
+        "OUT/manifest.json (per mesh: the source file and its sha256, the units decision, the "
+        "operations applied, the deviation, the OBJ's sha256), so that 'dg16m benchmark build "
+        "--meshes OUT' reads the folder. Units per mesh: --units, or --target-extent (the "
+        "longest side in m), or a guess among metres, centimetres and millimetres that is "
+        f"taken only when exactly one of them gives a longest side of {low:g}-{high:g} m, "
+        "printed for every mesh; any other size is refused with what each unit would make of "
+        f"it (a 9-unit chair: 9 m or 9 cm?). Given units must give {DUAL_ARM_MIN_EXTENT_M:g}-"
+        f"{DUAL_ARM_MAX_EXTENT_M:g} m. A mesh that fails (unreadable, empty, NaN coordinates, "
+        "units refused, repair failed) is reported with its reason and the others go on. "
+        "Reruns keep the meshes already repaired from the same source with the same options "
+        "and redo the rest, so a failed mesh can be rerun alone with its own --units. Exit "
+        "status: 0 when every mesh is repaired, 1 when some failed, 2 for bad input."
+    )
+
+
+def _objects_repair_arguments(command: argparse.ArgumentParser) -> None:
+    from dataset_gen.repair import RepairParameters  # trimesh: on use only
+    from dataset_gen.repair_meshes import UNIT_FACTORS
+
+    defaults = RepairParameters()
+    command.add_argument(
+        "inputs", nargs="+", type=Path, metavar="IN", help="a folder of mesh files, or mesh files"
+    )
+    command.add_argument(
+        "--out", type=Path, required=True, help="output folder (a rerun adds to it)"
+    )
+    units = command.add_mutually_exclusive_group()
+    units.add_argument(
+        "--units",
+        choices=tuple(UNIT_FACTORS),
+        default=None,
+        help="the files' unit (default: guessed per mesh, refused when unclear)",
+    )
+    units.add_argument(
+        "--target-extent",
+        type=float,
+        default=None,
+        metavar="METRES",
+        help="scale every mesh to this longest side (m)",
+    )
+    command.add_argument(
+        "--target-faces",
+        type=int,
+        default=defaults.target_faces,
+        help=f"most faces per mesh (default: {defaults.target_faces})",
+    )
+    command.add_argument(
+        "--pitch-fraction",
+        type=float,
+        default=defaults.pitch_fraction,
+        help=f"voxel size / longest side of the remesh (default: {defaults.pitch_fraction:g})",
+    )
+    command.add_argument("--workers", type=int, default=1, help="processes (default: 1)")
+    command.add_argument("--no-progress", action="store_true", help="no progress bar")
+    command.set_defaults(handler=_objects_repair)
+
+
+def _objects_repair(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from dataset_gen.repair import RepairParameters
+    from dataset_gen.repair_meshes import entry_line, repair_meshes, repair_summary
+
+    if args.target_extent is not None:
+        check_number("--target-extent", args.target_extent, error=MeshError)
+    try:
+        params = RepairParameters(
+            target_faces=args.target_faces, pitch_fraction=args.pitch_fraction
+        )
+    except MeshError as exc:
+        raise MeshError(f"--{str(exc).replace('_', '-')}") from None
+
+    def report(object_id: str, entry: Any, kept: bool) -> None:
+        tqdm.write(entry_line(object_id, entry, kept))
+
+    run = repair_meshes(
+        args.inputs,
+        args.out,
+        units=args.units,
+        target_extent=args.target_extent,
+        params=params,
+        workers=args.workers,
+        progress=not args.no_progress,
+        on_entry=report,
+    )
+    entries = {i: run.manifest["entries"][i] for i in run.ids}
+    summary = repair_summary(entries)
+    if run.skipped:
+        kinds = sorted({p.suffix.lower() or p.name for p in run.skipped})
+        print(f"skipped {len(run.skipped)} files that are not meshes ({', '.join(kinds[:8])})")
+    parts = [f"{len(run.repaired)} repaired"]
+    if run.kept:
+        parts.append(f"{len(run.kept)} kept from an earlier run")
+    parts.append(f"{len(run.failed)} failed")
+    print(f"{len(entries)} meshes: {', '.join(parts)}; {args.out}/manifest.json")
+    if summary["ok"]:
+        p10, p50, p90 = summary["seconds_p10_p50_p90"]
+        d10, d50, d90 = summary["to_source_p95_mm_p10_p50_p90"]
+        print(
+            f"seconds per mesh p10/p50/p90 {p10:.1f} / {p50:.1f} / {p90:.1f}; deviation "
+            f"(repaired to source, p95) {d10:.1f} / {d50:.1f} / {d90:.1f} mm"
+        )
+    if run.failed:
+        print(
+            f"{len(run.failed)} failed: {', '.join(run.failed)} (reasons above and in the "
+            "manifest; rerun a file alone with its own --units or --target-extent)",
+            file=sys.stderr,
+        )
+        return 1
+    print(f"next: dg16m benchmark build --meshes {args.out} --out OUT")
+    return 0
+
+
 def _register_show(subparsers: Any) -> None:
     show_grasps = add_command(
         subparsers,
@@ -459,6 +605,7 @@ def _objects_check(args: argparse.Namespace) -> int:
     if missing:  # nothing to check: bad input (exit 2), as for every command
         raise MeshError(f"expected mesh files, found nothing at {', '.join(missing)}")
     failures = 0
+    kinds = {"solid": 0, "shell": 0}
     for path in args.meshes:
         try:
             obj = load_object(
@@ -472,11 +619,56 @@ def _objects_check(args: argparse.Namespace) -> int:
             failures += 1
             print(f"FAIL {exc}")
             continue
+        kind, verdict = solid_or_shell(obj.mesh)
+        kinds[kind] += 1
         print(f"ok   {path}: {describe_object(obj)}")
+        print(f"     {verdict}")
+    counts = [f"{kinds['solid']} solid", f"{kinds['shell']} shell", f"{failures} failed"]
+    print(f"{len(args.meshes)} meshes: {', '.join(counts)}")
+    if kinds["shell"]:
+        print(
+            "to make the shells watertight solids: dg16m objects repair FOLDER_OR_FILES "
+            "--out REPAIRED (then build from REPAIRED)"
+        )
     if failures:
         print(f"{failures} of {len(args.meshes)} meshes failed", file=sys.stderr)
         return 1
     return 0
+
+
+def solid_or_shell(mesh: Any) -> tuple[str, str]:
+    """``("solid" | "shell", what dg16m's build does with it)`` for a loaded mesh (for people).
+
+    A solid is what the mass model calls one (:func:`dataset_gen.objects.mass_properties`):
+    watertight, consistently wound, positive volume. Anything else is a shell.
+    """
+    import trimesh
+
+    bodies = int(mesh.body_count)
+    pieces = f"{bodies} separate pieces" if bodies > 1 else "one piece"
+    if mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0:
+        what = (
+            f"watertight, {bodies} separate closed bodies that move as one rigid object; "
+            "objects repair would keep only the largest"
+            if bodies > 1
+            else "watertight, one closed volume"
+        )
+        return "solid", (
+            f"solid ({what}): benchmark build and generate use it as it is (mass from its "
+            "volume; CoACD decomposes it without its voxel repair)"
+        )
+    if not mesh.is_watertight:
+        open_edges = len(trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1))
+        why = f"not watertight: {open_edges} open edges, {pieces}"
+    elif not mesh.is_winding_consistent:
+        why = f"watertight but its faces are wound inconsistently, {pieces}"
+    else:
+        why = f"watertight but inside out (volume {mesh.volume:.3g} m^3), {pieces}"
+    return "shell", (
+        f"shell, not a solid ({why}): benchmark build treats it as a shell (mass spread over "
+        "its surface; CoACD voxel-remeshes it before decomposing, so its hulls stand off the "
+        "surface); run 'dg16m objects repair' first to make it one watertight solid"
+    )
 
 
 def _objects_decompose(args: argparse.Namespace) -> int:

@@ -219,6 +219,7 @@ PANDA = GripperModel(
         f"Franka's TCP (0.1034 m). {PAPER.f_high:g} N continuous force."
     ),
 )
+"""The Franka Emika Panda hand: the gripper of the benchmark's trials (its ``description``)."""
 
 ROBOTIQ_2F85 = GripperModel(
     name="robotiq_2f85",
@@ -238,6 +239,7 @@ ROBOTIQ_2F85 = GripperModel(
         "model was shorter: object material sits where these fingertips are for some of its grasps."
     ),
 )
+"""The Robotiq 2F-85 in the DG16M release's frame: the gripper the release sampled with."""
 
 GRIPPERS: dict[str, GripperModel] = {g.name: g for g in (PANDA, ROBOTIQ_2F85)}
 """Registered grippers by name."""

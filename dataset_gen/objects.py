@@ -55,6 +55,12 @@ DUAL_ARM_MAX_EXTENT_M = 5.0
 """Largest plausible longest side of a dual-arm object loaded from a file (m); larger files are
 usually in millimetres (an 80 mm box read as 80 m)."""
 
+TYPICAL_EXTENT_M = (0.3, 2.0)
+"""Longest sides (m) of the things two arms typically lift (the benchmark's objects are
+0.3-1.2 m). ``dg16m objects repair`` guesses a file's units only when exactly one of metres,
+centimetres and millimetres puts it here (:func:`dataset_gen.repair_meshes.decide_units`); a
+scale suggested for a size outside it says so (a 9.02-unit chair is not a 9 cm chair)."""
+
 UNIT_SCALES: tuple[tuple[float, str], ...] = (
     (1.0, "metres"),
     (0.001, "millimetres"),
@@ -554,7 +560,15 @@ def _scale_hint(longest: float, scale: float | None) -> str:
                 f"the file's own units give {_length(longest)}: it seems to be in metres "
                 f"already, so --scale {current:g} looks wrong (drop it)"
             )
-        return f"a file in {units} needs --scale {factor:g} ({_length(longest * factor)})"
+        size = longest * factor
+        low, high = TYPICAL_EXTENT_M
+        atypical = ""
+        if not low <= size <= high:
+            atypical = (
+                f"; that is {'small' if size < low else 'large'} for a dual-arm object: if the "
+                "units are unknown, run 'dg16m objects repair' with --units or --target-extent"
+            )
+        return f"a file in {units} needs --scale {factor:g} ({_length(size)}){atypical}"
     return "pass --scale or --target-extent to give it a plausible size"
 
 

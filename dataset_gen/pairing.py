@@ -71,6 +71,7 @@ from dataset_gen.sampling import SingleArmGrasps
 
 Strategy = Literal["force_closure", "random", "farthest"]
 STRATEGIES: tuple[str, ...] = ("force_closure", "random", "farthest")
+"""The pairing strategies :func:`make_pairs` takes (the values of ``Strategy``)."""
 
 #: Release parameter (DESIGN.md), an alias of :data:`dataset_gen.parameters.PAPER`'s field:
 #: pairs whose grasp centres are closer than 0.1 m are pruned (the selection's caps are in

@@ -100,12 +100,14 @@ PLANT_WORDS = (
     "plant", "tree", "flower", "flowers", "bush", "palm", "cactus", "lily", "orchid", "bonsai",
     "fern", "grass", "hedge", "rose", "roses", "tulip", "ivy", "bamboo", "shrub",
 )  # fmt: skip
+"""A model with one of these words in its name or tags is a plant (left out)."""
 TEXTILE_WORDS = (
     "rug", "carpet", "curtain", "curtains", "towel", "towels", "blanket", "cushion", "pillow",
     "drape", "drapes", "mat", "doormat", "tablecloth", "duvet", "sheet", "sheets", "clothes",
     "shirt", "dress", "coat", "jacket", "bathmat", "glove", "skirt", "trousers", "suit",
     "mattress", "futon",
 )  # fmt: skip
+"""A model whose name's head noun (:func:`head_word`) is one of these is a textile (left out)."""
 
 MAX_ASPECT = 12.0
 """Largest catalogue longest / shortest side of an object (flatter or thinner is a sheet or a

@@ -17,7 +17,7 @@ layer  folder                      what lives there
 0      :mod:`dg16m_env.rates`      object-resampled rates (numpy only)
 =====  ==========================  ==============================================================
 
-Modules that moved in 0.2.0 keep their old names for one release (:mod:`dg16m_env._compat`:
+Modules that moved in 0.2.0 keep their old names for one release (``dg16m_env._compat``:
 ``import dg16m_env.trial`` still works and warns).
 
 Rendering is offscreen: unless ``MUJOCO_GL`` is already set, it defaults to ``egl`` here, before

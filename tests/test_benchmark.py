@@ -178,7 +178,9 @@ def test_malformed_files_are_rejected(built: Path, tmp_path: Path, edit, message
 def test_not_hdf5_is_rejected(tmp_path: Path) -> None:
     path = tmp_path / "x.h5"
     path.write_text("hello")
-    with pytest.raises(BenchmarkError, match="expected a dg16m benchmark"):
+    with pytest.raises(
+        BenchmarkError, match="expected an HDF5 file, found a file without the HDF5"
+    ):
         read_benchmark(path)
 
 

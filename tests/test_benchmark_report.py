@@ -193,11 +193,34 @@ def test_version_1_file_exits_2_naming_the_version(
         assert "dg16m benchmark build" in captured.err
 
 
-def test_not_a_benchmark_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.parametrize(
+    ("content", "found"),
+    [
+        (b"", "found an empty file (0 bytes)"),
+        (b"not hdf5", "found a file without the HDF5 signature (it starts with b'not hdf5')"),
+    ],
+)
+def test_not_a_benchmark_exits_2(
+    content: bytes, found: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An empty or a text file: what was expected and what was found, not h5py's words."""
     bad = tmp_path / "bad.h5"
-    bad.write_text("not hdf5")
+    bad.write_bytes(content)
     assert cli_main(["benchmark", "info", str(bad)]) == 2
-    assert "expected a dg16m benchmark HDF5 file" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert f"{bad}: expected an HDF5 file, {found}" in err
+    assert "Unable to" not in err  # h5py's "Unable to synchronously open file"
+
+
+def test_no_benchmark_at_the_path_exits_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert cli_main(["benchmark", "info", str(tmp_path / "absent.h5")]) == 2
+    assert "expected a dg16m benchmark HDF5 file, found nothing at this path" in (
+        capsys.readouterr().err
+    )
+    assert cli_main(["benchmark", "info", str(tmp_path)]) == 2
+    assert "expected a dg16m benchmark HDF5 file, found a directory" in capsys.readouterr().err
 
 
 def test_json_ready_replaces_non_finite_numbers() -> None:

@@ -124,6 +124,25 @@ def test_pages_for_every_environment_and_package(site: Path) -> None:
     assert "dg16m demo" in cli
 
 
+# Pages whose docstrings are not checked yet: the environments are being rewritten, and
+# baselines' and leaderboard's references still name private or undocumented code.
+UNCHECKED_PAGES = ("api/dg16m_env.envs", "environments/", "api/baselines", "api/leaderboard")
+
+
+def unresolved_references(doctrees: Path) -> list[str]:
+    """The unresolved docstring references the build listed (``page: role target``), those on
+    :data:`UNCHECKED_PAGES` aside."""
+    listed = (doctrees / "unresolved-api-references.txt").read_text(encoding="utf-8")
+    return [line for line in listed.splitlines() if not line.startswith(UNCHECKED_PAGES)]
+
+
+def test_docstring_references_resolve(site: Path) -> None:
+    """Issue 43: dataset_gen's and dg16m_env's docstrings name only documented things (an
+    unresolved reference stays plain text, so the build itself does not fail on it)."""
+    found = unresolved_references(site.parent / "doctrees")
+    assert found == [], f"expected every reference to resolve, found {len(found)}: {found}"
+
+
 def test_pictures_are_small() -> None:
     """The committed pictures of trials (scripts/docs_pictures.py) stay small."""
     files = [path for path in PICTURES.iterdir() if path.is_file()]
@@ -199,3 +218,23 @@ def test_page_renders_in_chromium(
     assert overflow <= 1, f"the page scrolls sideways by {overflow} px"
     name = page.replace("/", "_").replace(".html", ".png")
     assert screenshot(browser, tmp_path, f"docs_{name}").stat().st_size > 10_000
+
+
+def test_the_docs_extra_pins_the_installed_sphinx_autodoc_typehints() -> None:
+    """Issue 43: a reproducible docs build; sphinx-autodoc-typehints changes the rendered
+    signatures and the warnings ``-W`` fails on between releases, so the docs extra pins the
+    version the site is built with (the one installed here)."""
+    from importlib.metadata import version
+
+    tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
+    from packaging.requirements import Requirement  # a dependency of Sphinx
+
+    with open(ROOT / "pyproject.toml", "rb") as handle:
+        extras = tomllib.load(handle)["project"]["optional-dependencies"]
+    pins = [
+        str(req.specifier)
+        for req in map(Requirement, extras["docs"])
+        if req.name == "sphinx-autodoc-typehints" and (req.marker is None or req.marker.evaluate())
+    ]
+    installed = version("sphinx-autodoc-typehints")
+    assert pins == [f"=={installed}"], f"expected the pin =={installed}, found {pins}"

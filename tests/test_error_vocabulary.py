@@ -69,12 +69,12 @@ def test_a_mesh_file_where_a_folder_must_go(
         assert f"--meshes: expected a folder of mesh files, found a file: {chair}" in err
 
 
-def test_an_empty_hdf5_file_reads_the_same_in_inspect_validate_and_evaluate(
+def test_an_empty_hdf5_file_reads_the_same_in_inspect_validate_evaluate_and_info(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     empty = tmp_path / "empty.h5"
     empty.write_bytes(b"")
-    for argv in (["inspect"], ["submission", "validate"], ["evaluate"]):
+    for argv in (["inspect"], ["submission", "validate"], ["evaluate"], ["benchmark", "info"]):
         assert main([*argv, str(empty)]) == 2, argv
         err = capsys.readouterr().err
         assert "expected an HDF5 file, found an empty file (0 bytes)" in err, argv

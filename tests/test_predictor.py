@@ -4,8 +4,13 @@ from __future__ import annotations
 
 import json
 import multiprocessing
+import os
+import signal
+import subprocess
+import sys
 import tempfile
 import textwrap
+import time
 from pathlib import Path
 from typing import Any
 
@@ -121,6 +126,12 @@ def hog(obs):
     if obs["object_id"] == "b":
         bytearray(2 * LIMIT_MB * 1024 * 1024)
     return poses(obs)
+
+
+def start_method(obs):
+    import multiprocessing
+
+    raise ValueError(f"start method {multiprocessing.get_start_method()}")
 
 
 def benchmark(obs):
@@ -257,6 +268,70 @@ def test_crash_is_reported_and_restarts(module_file: Path) -> None:
     assert run.errors == {"b": "the predictor process died (exit code 3)"}
     assert_succeeded(run, "acd")
     assert run.restarts == 1
+
+
+def test_the_child_uses_the_parents_start_method(module_file: Path) -> None:
+    """multiprocessing's bootstrap makes "spawn" a spawned child's default: the predictor's own
+    locks (tqdm's) were then named semaphores of the parent's resource tracker."""
+    run = run_predictor(spec(module_file, "start_method"), observations("a"))
+    found = run.errors["a"].splitlines()[-1]
+    assert found == f"ValueError: start method {multiprocessing.get_start_method()}"
+
+
+SLEEPER = """
+import multiprocessing
+import time
+from pathlib import Path
+
+from tqdm import tqdm
+
+
+def predict(observation):
+    tqdm.get_lock()  # tqdm's lock: a semaphore of the default start method
+    lock = multiprocessing.get_context("spawn").Lock()  # a named one, in the resource tracker
+    Path(MARK).touch()
+    time.sleep(600)
+    return lock
+"""
+
+# Python's own SIGINT handler, as in a terminal (a background job starts with SIGINT ignored)
+CLI_MAIN = (
+    "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+    "from dataset_gen.cli import main; sys.exit(main(sys.argv[1:]))"
+)
+
+
+def test_ctrl_c_during_a_call_exits_130_without_leaks(tmp_path: Path) -> None:
+    """Ctrl-C (SIGINT to the terminal's process group) while the predictor sleeps in a call:
+    exit status 130 and no "leaked semaphore" warning from the resource tracker."""
+    mark = tmp_path / "started"
+    module = tmp_path / "sleeper.py"
+    module.write_text(SLEEPER.replace("MARK", repr(str(mark))))
+    argv = ["evaluate", "--predictor", f"{module}:predict", "--limit", "1", "--evaluators", "fce"]
+    argv += ["--save-submission", str(tmp_path / "s.h5"), "--out", str(tmp_path / "r.json")]
+    argv += ["--time-limit", "600", "--no-progress"]
+    process = subprocess.Popen(
+        [sys.executable, "-c", CLI_MAIN, *argv],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, as a terminal's foreground job
+    )
+    try:
+        deadline = time.monotonic() + 120  # the import and the first observation
+        while not mark.exists() and process.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert mark.exists(), f"expected the predictor to start, found rc {process.poll()}"
+        os.killpg(process.pid, signal.SIGINT)
+        _, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.communicate()
+    assert process.returncode == 130, err
+    assert "interrupted" in err
+    assert "leaked" not in err, err
+    assert "Traceback" not in err, err
 
 
 def test_memory_limit(module_file: Path) -> None:

@@ -24,6 +24,8 @@ from dataset_gen.procedural import make_procedural_object
 from dataset_gen.ray_hits import PAD, segment_candidates, segment_hits, triangle_grid
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
+BENCH = load_script("bench/generate_object.py", "generate_object_bench")
+"""The reference path of before issue 45 (``reference_first_hits``, ``engines``)."""
 
 
 def random_rays(
@@ -38,13 +40,6 @@ def random_rays(
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     origins = targets - directions * rng.uniform(0.0, 0.12, (count, 1))
     return origins, directions
-
-
-def reference_nearest(mesh, origins, directions, max_distance):
-    hits = RayMeshIntersector(mesh).intersects_id(
-        origins, directions, multiple_hits=True, return_locations=True
-    )
-    return nearest_hits(origins, directions, max_distance, *hits)
 
 
 def meshes() -> list[tuple[str, trimesh.Trimesh]]:
@@ -73,7 +68,7 @@ def test_first_hits_match_trimesh(name: str, mesh: trimesh.Trimesh) -> None:
     for max_distance in (0.08, 0.3, float(np.linalg.norm(mesh.extents)) * 2):
         hits = segment_hits(mesh, origins, directions, max_distance)
         got = nearest_hits(origins, directions, max_distance, *hits)
-        want = reference_nearest(mesh, origins, directions, max_distance)
+        want = BENCH.reference_first_hits(mesh, origins, directions, max_distance)
         hit = np.isfinite(want[0])
         assert hit.sum() > 1000, name  # the rays do hit
         np.testing.assert_array_equal(np.isfinite(got[0]), hit)
@@ -145,7 +140,7 @@ def test_bad_triangles_and_empty_inputs() -> None:
 
 @pytest.fixture(scope="module")
 def reference_bench():
-    return load_script("bench/generate_object.py", "generate_object_bench")
+    return BENCH
 
 
 def written_bytes(path: Path, obj, params, bench, reference: bool) -> bytes:

@@ -233,6 +233,24 @@ def test_help_has_examples(argv: list[str], capsys: pytest.CaptureFixture[str]) 
     assert "dg16m " + " ".join(argv) in out
 
 
+def test_replay_help_says_how_frames_are_chosen(capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 43: the help said frames are spread evenly; a strip shows ends of distinct phases
+    (:func:`frame_steps`), an animation frames spread in time, key frames on top."""
+    from dg16m_env.physics.trial_protocol import PHASES
+
+    parser = argparse.ArgumentParser(prog="dg16m")
+    register(parser.add_subparsers(dest="command"))
+    with pytest.raises(SystemExit):
+        parser.parse_args(["sim", "replay", "--help"])
+    out = " ".join(capsys.readouterr().out.split())  # argparse's line breaks undone
+    assert f"Its {len(PHASES)} phases" in out
+    assert "at most one frame per phase" in out
+    assert "more frames (a GIF) are spread evenly in time" in out
+    assert "a few frames more than N" in out
+    assert "frames spread evenly over the part" not in out
+    assert "evenly spread frames" not in out
+
+
 def test_cli_replay_writes_a_strip(
     with_sim: None,
     can_render: None,

@@ -873,8 +873,13 @@ def test_a_partial_submission_for_the_shipped_benchmark_says_how_to_score_a_few(
     from dg16m_env.subjects.submission_writer import PartialSubmissionWarning
 
     ids = [o.object_id for o in read_benchmark(EMBEDDED_BENCHMARK).objects]
-    with pytest.warns(PartialSubmissionWarning, match=r"all 300 objects.*found 3.*--limit N"):
-        path = write_submission(tmp_path / "three.h5", {i: rigid() for i in ids[:3]})
+    three = tmp_path / "three.h5"
+    with pytest.warns(PartialSubmissionWarning, match=r"all 300 objects.*found 3") as caught:
+        path = write_submission(three, {i: rigid() for i in ids[:3]})
+    message = str(caught[0].message)  # how to score them on purpose: a partial evaluation
+    assert f"'dg16m evaluate {three} --objects IDS'" in message
+    assert "'--limit N'" in message
+    assert "marked partial" in message
     assert path.is_file()  # written all the same (a user may mean it)
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -481,9 +481,14 @@ def solve_batch(
     """Run both phases on every pair and wrench.
 
     Args:
-        P: ``(N, 4, 3)`` contact points. A: ``(N, 4, 3)`` unit cone axes. W: ``(K, 6)`` wrenches.
-        forces: out ``(N, K, 12)``; losses, lower: out ``(N, K)``; status: out ``(N, K)`` int8
-        (0 undecided, 1 certified pass, 2 certified fail); iterations: out ``(N, K)`` int32.
+        P: ``(N, 4, 3)`` contact points.
+        A: ``(N, 4, 3)`` unit cone axes.
+        W: ``(K, 6)`` wrenches.
+        forces: out ``(N, K, 12)``.
+        losses: out ``(N, K)``.
+        lower: out ``(N, K)``.
+        status: out ``(N, K)`` int8, 0 undecided, 1 certified pass, 2 certified fail.
+        iterations: out ``(N, K)`` int32.
     """
     n_w = W.shape[0]
     c = 1.0 / math.sqrt(1.0 + mu * mu)

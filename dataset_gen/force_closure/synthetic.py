@@ -11,6 +11,7 @@ import numpy as np
 from .geometry import FloatArray
 
 FAMILIES: tuple[str, ...] = ("sphere", "box", "random", "near_collinear")
+"""The synthetic contact families :func:`family_pairs` makes."""
 
 
 def _unit(v: FloatArray) -> FloatArray:

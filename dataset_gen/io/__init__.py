@@ -20,7 +20,7 @@ module                             contents
 :mod:`dataset_gen.io.versions`     package version and the schema versions written and read
 :mod:`dataset_gen.io.detect`       :func:`detect_format` of a grasp file
 ``dataset_gen.io._checks``         validation shared by the formats
-``dataset_gen.io._hdf5``           safe HDF5 reading, deterministic :func:`write_array`
+``dataset_gen.io._hdf5``           safe HDF5 reading, deterministic ``write_array``
 =================================  ===========================================================
 """
 

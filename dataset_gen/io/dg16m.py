@@ -298,7 +298,7 @@ class DualGraspSet:
 
     @property
     def passed(self) -> np.ndarray:
-        """(N,) bool: True for the pairs listed in ``passing_indices``."""
+        """(N,) bool, True for the pairs listed in ``passing_indices``."""
         mask = np.zeros(self.n, dtype=bool)
         mask[self.passing_indices] = True
         return mask

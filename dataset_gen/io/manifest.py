@@ -47,7 +47,7 @@ MANIFEST_NAME = "manifest.json"
 
 MANIFEST_FORMAT = "dg16m-manifest"
 
-MANIFEST_KINDS = ("objects", "grasps", "benchmark", "sweethome3d-import")
+MANIFEST_KINDS = ("objects", "grasps", "benchmark", "sweethome3d-import", "mesh-repair")
 MANIFEST_STATUSES = ("ok", "failed")
 _MANIFEST_KEYS = ("format", "schema_version", "kind", "created_by", "parameters", "entries")
 _WINDOWS_DRIVE = re.compile(r"^[A-Za-z]:")

@@ -209,7 +209,8 @@ def _file_pairs(
 
 class ObjectRejectedError(BenchmarkError):
     """An object that cannot give the benchmark enough passing pairs (see
-    :func:`benchmark_object`'s ``min_passing``); ``stage`` says where it was found out."""
+    :func:`~dg16m_env.benchmark.build.benchmark_object`'s ``min_passing``); ``stage`` says where
+    it was found out."""
 
     def __init__(self, stage: str, message: str) -> None:
         super().__init__(message)

@@ -26,6 +26,7 @@ from dataset_gen.decomposition import (
 )
 from dataset_gen.errors import Dg16mError
 from dataset_gen.io import (
+    failed_entries,
     package_version,
     read_dg16m,
 )
@@ -82,7 +83,7 @@ def _grid_hull(part: ConvexPart, grid: float, min_volume: float) -> ConvexPart |
 def grid_parts(
     parts: Sequence[ConvexPart], grid: float, mesh_vertices: np.ndarray
 ) -> tuple[ConvexPart, ...]:
-    """A mesh's CoACD hulls on the grid (m), without those it flattens (:func:`_grid_hull`).
+    """A mesh's CoACD hulls on the grid (m), without those it flattens (``_grid_hull``).
 
     Raises:
         BenchmarkError: every hull flattened.
@@ -217,6 +218,18 @@ def benchmark_metadata(
     if simulator is not None and not simulator.is_default:
         out["simulator"] = simulator.describe()
     return out
+
+
+class NothingBuiltError(BenchmarkError):
+    """Every object of a build failed, so there is no benchmark to write.
+
+    Attributes:
+        failed: each object id -> its reason (from the manifest).
+    """
+
+    def __init__(self, message: str, failed: Mapping[str, str]) -> None:
+        super().__init__(message)
+        self.failed = dict(failed)
 
 
 @dataclass(frozen=True)
@@ -470,17 +483,18 @@ def write_built_benchmark(
     """Concatenate the finished objects ``ids`` (in that order) into ``root/benchmark.h5``.
 
     Raises:
-        BenchmarkError: none of them finished (the reasons are named).
+        NothingBuiltError: none of them finished (the reasons are named).
     """
     done = [i for i in ids if manifest["entries"].get(i, {}).get("status") == "ok"]
     if not done:
         reasons = sorted(
             {manifest["entries"][i].get("error", "?") for i in ids if i in manifest["entries"]}
         )
-        raise BenchmarkError(
+        raise NothingBuiltError(
             f"{root}: expected at least one object to build, found all failed: "
             + "; ".join(reasons[:5])
-            + (f" (and {len(reasons) - 5} more, see manifest.json)" if len(reasons) > 5 else "")
+            + (f" (and {len(reasons) - 5} more, see manifest.json)" if len(reasons) > 5 else ""),
+            failed_entries(manifest, ids),
         )
     parts = [read_benchmark(root / manifest["entries"][i]["files"]["benchmark"]) for i in done]
     metadata = benchmark_metadata(params, simulator)

@@ -95,7 +95,7 @@ class BenchmarkParameters:
             as int32 multiples, in half float32's compressed bytes (None, the default: as
             CoACD gave them). The real benchmark's 5e-5 m moves a vertex at most 0.025 mm
             per axis, against hulls that stand off the mesh by ~0.8 mm (p95); a sliver hull
-            the grid flattens to no volume is left out (:func:`grid_parts`).
+            the grid flattens to no volume is left out (:func:`~dg16m_env.benchmark.build.grid_parts`).
 
     ``mu``, ``mass``, ``f_high``, ``threshold``, ``min_center_distance`` and the scene's and
     protocol's friction, squeeze force and gravity default to the paper's values

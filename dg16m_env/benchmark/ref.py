@@ -9,7 +9,6 @@ objects is never mistaken for a score over the benchmark.
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -127,14 +126,14 @@ def record_is_partial(record: Any) -> bool:
 
 
 def _real_categories() -> dict[str, str]:
-    """Object id -> catalogue category of the shipped real split (empty when it is absent)."""
-    from dg16m_env.benchmark.real import REAL_SPLIT_FILE
+    """Object id -> catalogue category of the shipped real split (empty when this installation
+    lacks the file; a malformed one raises :class:`BenchmarkError`)."""
+    from dg16m_env.benchmark.real import REAL_SPLIT_FILE, read_split
 
-    try:
-        split = json.loads(Path(REAL_SPLIT_FILE).read_text(encoding="utf-8"))
-        return {i: c for c, v in split["categories"].items() for i in v["order"]}
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+    if not REAL_SPLIT_FILE.is_file():
         return {}
+    split = read_split(REAL_SPLIT_FILE)
+    return {i: c for c, v in split["categories"].items() for i in v["order"]}
 
 
 def parse_object_ids(text: str) -> list[str]:
@@ -159,9 +158,12 @@ def parse_object_ids(text: str) -> list[str]:
 def load_benchmark_ref(
     benchmark: str | os.PathLike[str] | BenchmarkRef | None = None,
     mesh_root: str | os.PathLike[str] | None = None,
+    *,
+    lazy: bool = False,
 ) -> BenchmarkRef:
     """Read a benchmark (a file, a short name of :data:`~dg16m_env.benchmark.names.SHIPPED_BENCHMARKS`
-    such as ``"real"``, default: the embedded procedural benchmark) and hash it.
+    such as ``"real"``, default: the embedded procedural benchmark) and hash it. ``lazy``: read
+    each object's parts and mesh when first used (:func:`~dg16m_env.benchmark.file.read_benchmark`).
 
     Raises:
         BenchmarkError: the file is missing or malformed.
@@ -169,7 +171,7 @@ def load_benchmark_ref(
     if isinstance(benchmark, BenchmarkRef):
         return benchmark
     path = benchmark_file(benchmark)
-    bench = read_benchmark(path)  # validates, and says so when the file is missing
+    bench = read_benchmark(path, lazy=lazy)  # validates, says so when the file is missing
     return BenchmarkRef(
         path=path,
         sha256=file_sha256(path),

@@ -153,7 +153,7 @@ def mesh_benchmark_sources(
 ) -> list[BenchmarkSource]:
     """Sources for a folder of the user's meshes without grasp files: each mesh file is an
     object (id = file stem) whose pairs are sampled, paired and checked like the procedural
-    ones (:func:`sampled_pairs`).
+    ones (:func:`~dg16m_env.benchmark.arms.sampled_pairs`).
 
     Args:
         meshes: folder of mesh files (:data:`~dataset_gen.objects.MESH_SUFFIXES`).

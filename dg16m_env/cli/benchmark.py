@@ -7,20 +7,14 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from dataset_gen.cli import add_command
 from dataset_gen.parameters import PROTOCOL
 from dg16m_env.cli.evaluate import benchmark_argument
-from dg16m_env.physics.reseat import DEFAULT_RESEAT_MAX, RESEAT_STEP  # constants, no numpy
+from dg16m_env.physics.reseat import DEFAULT_RESEAT_MAX, RESEAT_STEP
 from dg16m_env.physics.simulator import add_simulator_arguments, simulator_from_args
-
-if TYPE_CHECKING:
-    from dg16m_env.benchmark.model import BenchmarkParameters
-    from dg16m_env.benchmark.sources import BenchmarkSource
-    from dg16m_env.physics.simulator import Simulator
 
 BENCHMARK_EXAMPLES = (
     "  dg16m benchmark build --out runs/bench10 --limit 10\n"
@@ -403,7 +397,7 @@ def _sources(args: argparse.Namespace) -> list[Any]:
 
 def _build(args: argparse.Namespace) -> int:
     from dataset_gen.io import failed_entries, failure_lines, read_manifest
-    from dg16m_env.benchmark.build import build_benchmark
+    from dg16m_env.benchmark.build import NothingBuiltError, build_benchmark
     from dg16m_env.benchmark.file import read_benchmark
     from dg16m_env.benchmark.model import BenchmarkError, BenchmarkParameters
     from dg16m_env.benchmark.report_text import format_summary
@@ -433,13 +427,12 @@ def _build(args: argparse.Namespace) -> int:
             progress=not args.no_progress,
             simulator=simulator,
         )
-    except BenchmarkError:
-        failed = _all_failed(args.out, items, params, simulator)
-        if failed is None:
+    except NothingBuiltError as exc:
+        if len(exc.failed) != len(items):
             raise
         # every object ran and failed (e.g. meshes in millimetres): failures it lists, exit 1
-        print(f"{args.out}: 0 objects ok, {len(failed)} failed; no benchmark written")
-        print("\n".join(failure_lines(failed)))
+        print(f"{args.out}: 0 objects ok, {len(exc.failed)} failed; no benchmark written")
+        print("\n".join(failure_lines(exc.failed)))
         return 1
     print(format_summary(read_benchmark(path), path=path))
     print(f"wrote {path}")
@@ -448,25 +441,6 @@ def _build(args: argparse.Namespace) -> int:
         print(f"{len(failed)} objects failed and are left out of the benchmark:")
         print("\n".join(failure_lines(failed)))
     return 1 if failed else 0
-
-
-def _all_failed(
-    out: Path, items: Sequence[BenchmarkSource], params: BenchmarkParameters, simulator: Simulator
-) -> dict[str, str] | None:
-    """Each object's reason when the build in ``out`` ran every object of ``items`` with these
-    parameters and all failed (``build_benchmark`` then has nothing to write); ``None`` when
-    the build stopped for another reason (a folder of other parameters, say)."""
-    from dataset_gen.io import failed_entries, read_manifest
-    from dg16m_env.benchmark.build import build_parameters
-
-    if not (Path(out) / "manifest.json").is_file():
-        return None
-    manifest = read_manifest(out)
-    if manifest["parameters"] != build_parameters(items, params, simulator, None):
-        return None
-    ids = [item.object_id for item in items]
-    failed = failed_entries(manifest, ids)
-    return failed if ids and len(failed) == len(ids) else None
 
 
 def _info(args: argparse.Namespace) -> int:

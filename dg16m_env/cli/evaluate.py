@@ -393,10 +393,12 @@ def _score_submission(
     from dg16m_env.evaluators import submission_evaluators
 
     stored_subject, stored = _stored(args.out) if args.resume else ({}, {})
-    submission = _reusable_submission(args, ref, stored_subject) if kind == "predictor" else None
-    if submission is None:
+    reused = _reusable_submission(args, ref, stored_subject) if kind == "predictor" else None
+    if reused is not None:
+        submission, sha256 = reused
+    else:
         submission = _submission_subject(args, ref, kind, progress)
-    sha256 = file_sha256(submission)
+        sha256 = file_sha256(submission)
     record.update({"file": str(submission), "target": args.predictor, "sha256": sha256})
     built = submission_evaluators(
         _names(args.evaluators, "fce,gsr"),
@@ -461,9 +463,9 @@ def _check_resumable(
 
 def _reusable_submission(
     args: argparse.Namespace, ref: Any, stored_subject: dict[str, Any]
-) -> Path | None:
-    """``--resume`` of a ``--predictor`` run: the submission the earlier run wrote, when it
-    was made by the same predictor for the same objects and is unchanged (its sha256)."""
+) -> tuple[Path, str] | None:
+    """``--resume`` of a ``--predictor`` run: the submission the earlier run wrote and its
+    sha256, when it was made by the same predictor for the same objects and is unchanged."""
     from dataset_gen.hashing import file_sha256
 
     file, sha256 = stored_subject.get("file"), stored_subject.get("sha256")
@@ -484,7 +486,7 @@ def _reusable_submission(
     ):
         return None
     print(f"--resume: reusing the predictor's submission {path} (sha256 {sha256[:12]})")
-    return path
+    return path, sha256
 
 
 def _predictor_spec(args: argparse.Namespace) -> Any:

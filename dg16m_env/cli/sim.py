@@ -110,10 +110,15 @@ def register(subparsers: Any) -> None:
         "Render one trial (a benchmark row or a pair of a DG16M file) to a PNG strip or a GIF.",
         REPLAY_EXAMPLES,
         description=(
-            "Replay one trial step by step and render it offscreen: frames spread evenly over "
-            "the part of the trial that decides the verdict (all of it when the grasp held, up "
-            "to the end of the failing phase when it failed), plus the end of the close phase, "
-            "the first step out of bounds and the end of the failing phase. Each frame is "
+            "Replay one trial step by step and render it offscreen, over the part of the trial "
+            "that decides the verdict (all of it when the grasp held, up to the end of the "
+            "failing phase when it failed). Its 14 phases (close, gravity, 6 forces, 6 torques) "
+            "give the start and the end of each phase as candidate frames: N frames up to that "
+            "many (a PNG strip) are candidates chosen evenly among them, at most one frame per "
+            "phase, so no two pictures show the same phase; more frames (a GIF) are spread "
+            "evenly in time. The end of the close phase, the first step out of bounds and the "
+            "end of the failing phase are always added, so a picture may hold a few frames "
+            "more than N. Each frame is "
             "captioned with time, phase and slip (the object's displacement at the hands' grasp "
             "centres). The object is drawn translucent; hand 0 is orange, hand 1 blue, contacts "
             "are red. Prints the stored label and the replayed outcome. Rendering needs "
@@ -176,7 +181,9 @@ def _replay_arguments(replay: argparse.ArgumentParser) -> None:
         type=int,
         default=None,
         metavar="N",
-        help="evenly spread frames (default: 8 for PNG, 40 for GIF)",
+        help="frames: up to the number of phase ends, ends of distinct phases (one frame per "
+        "phase); more, spread evenly in time; the key frames come on top (default: 8 for PNG, "
+        "40 for GIF)",
     )
     output.add_argument("--size", default="480x360", help="frame size WxH (default: 480x360)")
     output.add_argument(

@@ -8,7 +8,9 @@ Ids (each documented in its module, with a version history):
 * ``dg16m_env/DualGraspSelect-v0`` (:mod:`.dual_grasp_select`): one step: pick one of K
   candidate dual grasps of the benchmark;
 * ``dg16m_env/DualGraspLift-v0`` (:mod:`.dual_grasp_lift`): closed loop: two floating Panda
-  hands lift an object from a table.
+  hands lift an object from a table;
+* ``dg16m_env/DualGraspLift-v1`` (:mod:`.dual_grasp_lift_v1`): the same task as a learning
+  benchmark: reward modes where success pays best, observation modes, state save and restore.
 
 The Lift task's reward is :mod:`.lift_reward` and its scripted expert :mod:`.lift_expert`;
 :mod:`.common`, :mod:`.objects` and :mod:`.spaces` serve the tasks. Layer rule: modules here
@@ -32,6 +34,7 @@ ENVIRONMENTS: dict[str, tuple[str, int | None]] = {
     "DualGraspPose-v0": ("dg16m_env.envs.dual_grasp_pose:DualGraspPoseEnv", None),
     "DualGraspSelect-v0": ("dg16m_env.envs.dual_grasp_select:DualGraspSelectEnv", None),
     "DualGraspLift-v0": ("dg16m_env.envs.dual_grasp_lift:DualGraspLiftEnv", 200),
+    "DualGraspLift-v1": ("dg16m_env.envs.dual_grasp_lift_v1:DualGraspLiftV1Env", 200),
 }
 
 

@@ -214,6 +214,7 @@ from dg16m_env.envs.lift_spaces import (
     OBS_SIZE,
     OBS_SLICES,
     _right_matrix,
+    check_lift_action,
 )
 from dg16m_env.envs.lift_targets import check_reset_options, parse_target_option
 from dg16m_env.envs.objects import CACHE_SIZE, BenchmarkObjects
@@ -270,10 +271,33 @@ TARGET_MIN_P = 0.5
 TERMINATIONS = ("success", "off_table", "out_of_bounds", "unstable")
 """The values of ``info["termination"]`` when an episode terminates (``""`` while it runs)."""
 
+_MOCAP_STATE = int(mujoco.mjtState.mjSTATE_MOCAP_POS | mujoco.mjtState.mjSTATE_MOCAP_QUAT)
+"""The hand targets of a substep, one ``mj_setState`` row: both flanges, then both quaternions."""
+_BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
+_NO_SENSORS = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+
 
 # --------------------------------------------------------------------------------------------
 # Per-object data (cached)
 # --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class StepMeasures:
+    """What one control step did (:meth:`DualGraspLiftEnv._measure`): centre-of-mass ``lift``
+    (m), ``grasping`` ((2,) bool), ``holding``, ``success``, ``termination`` (``""`` while
+    running), ``unstable``, ``slip`` ((2,) m), mean ``reach_distance`` (m), mean ``jaw_angle``
+    (rad, None without a target)."""
+
+    lift: float
+    grasping: np.ndarray
+    holding: bool
+    success: bool
+    termination: str
+    unstable: bool
+    slip: np.ndarray
+    reach_distance: float
+    jaw_angle: float | None
 
 
 @dataclass
@@ -334,8 +358,10 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
         self.substeps = max(1, round(1.0 / (CONTROL_HZ * self.timestep)))
         self.control_dt = self.substeps * self.timestep
         self._fractions = np.arange(1, self.substeps + 1, dtype=np.float64) / self.substeps
+        self._fraction_column = self._fractions[:, None, None]  # (n, 1, 1), for the substeps
         self.hold_steps = math.ceil(self.hold_time / self.control_dt - 1e-9)
         self._hand_points = hand_points()
+        self._clip_points: tuple[float, np.ndarray] | None = None  # depth, hand points - depth y
         self._bench = self.objects.ref.benchmark
         self._p_full = self._bench.p("full")
 
@@ -564,29 +590,7 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
             data.qpos[address + 3 : address + 7] = self._target_quat[k]
 
     def _check_action(self, action: Any) -> np.ndarray:
-        def bad(found: str) -> ValueError:
-            return ValueError(
-                f"action: expected an action in {self.action_space} (shape ({ACTION_SIZE},), "
-                f"finite floats in [-1, 1]), found {found}"
-            )
-
-        if not isinstance(action, np.ndarray):
-            try:
-                action = np.asarray(action)
-            except (TypeError, ValueError):
-                raise bad(type(action).__name__) from None
-        if action.dtype.kind != "f":
-            raise bad(f"dtype {action.dtype}")
-        if action.shape != (ACTION_SIZE,):
-            raise bad(f"shape {action.shape}")
-        values = action.astype(np.float64)
-        if not np.abs(values).max() <= 1.0:  # False for NaN too
-            broken = np.flatnonzero(~np.isfinite(values))
-            if broken.size:
-                raise bad(f"NaN or inf at index {broken.tolist()}")
-            worst = int(np.argmax(np.abs(values)))
-            raise bad(f"{values[worst]!r} at index {worst}")
-        return values
+        return check_lift_action(action, self.action_space)
 
     def _clip_command(self, centres: np.ndarray, rotations: np.ndarray) -> np.ndarray:
         """Grasp centres inside the workspace and hands above the table (module docstring)."""
@@ -596,7 +600,9 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
         assert self._current is not None
         depth = self._current.scene.gripper.contact_depth
         # Lowest hand point relative to the grasp centre: R (p - depth * y).
-        local = self._hand_points - np.array([0.0, depth, 0.0])
+        if self._clip_points is None or self._clip_points[0] != depth:
+            self._clip_points = (depth, self._hand_points - np.array([0.0, depth, 0.0]))
+        local = self._clip_points[1]
         lowest = (rotations[:, 2, :] @ local.T).min(axis=1)
         centres[:, 2] = np.maximum(centres[:, 2], TABLE_MARGIN - lowest)
         return centres
@@ -608,8 +614,11 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
         scene, data = self._current.scene, self._current.data
         model = scene.model
 
-        moves = values[[0, 1, 2, 7, 8, 9]].reshape(2, 3) * MAX_TRANSLATION
-        turns = values[[3, 4, 5, 10, 11, 12]].reshape(2, 3) * MAX_ROTATION
+        # The same operations as the plain formulas in the comments, on views and reused
+        # arrays (bit for bit the same; bench/env_lift.py measures the difference).
+        pairs = values.reshape(2, 7)  # one row per hand
+        moves = pairs[:, 0:3] * MAX_TRANSLATION  # values[[0, 1, 2, 7, 8, 9]].reshape(2, 3) * ..
+        turns = pairs[:, 3:6] * MAX_ROTATION  # values[[3, 4, 5, 10, 11, 12]].reshape(2, 3) * ..
         start_centres, start_quat = self._target_pos, self._target_quat
 
         # Substep targets: rotations at a constant rate (the quaternion is the commanded
@@ -630,41 +639,49 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
             mujoco.mju_quat2Mat(rotations[k], final[k])
         rotations = rotations.reshape(2, 3, 3)
         centres = self._clip_command(start_centres + moves, rotations)
-        path = start_centres + fraction[:, None, None] * (centres - start_centres)  # (n, 2, 3)
-        data.ctrl[scene.squeeze_actuators] = values[[6, 13]] * scene.params.squeeze_force
+        path = start_centres + self._fraction_column * (centres - start_centres)  # (n, 2, 3)
+        data.ctrl[scene.squeeze_actuators] = pairs[:, 6] * scene.params.squeeze_force
         # Approach axis R[:, 1] of each substep quaternion (w, x, y, z); MuJoCo normalises
-        # mocap quaternions itself.
+        # mocap quaternions itself. Each substep's hand targets (mocap ids 0, 1 = hands) are
+        # one row of ``targets``: both flanges, then both quaternions (mjSTATE_MOCAP_POS, _QUAT).
         w, x, y, z = quats[..., 0], quats[..., 1], quats[..., 2], quats[..., 3]
         approach = np.empty((n, 2, 3))
         approach[..., 0] = 2.0 * (x * y - w * z)
         approach[..., 1] = 1.0 - 2.0 * (x * x + z * z)
         approach[..., 2] = 2.0 * (y * z + w * x)
         flanges = path - scene.gripper.contact_depth * approach
-        mocap_pos, mocap_quat = data.mocap_pos, data.mocap_quat  # mocap ids 0, 1 = hands
-        warnings_before = int(data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number)
-        for i in range(n):
-            mocap_pos[:] = flanges[i]
-            mocap_quat[:] = quats[i]
-            mujoco.mj_step(model, data)
+        targets = np.concatenate([flanges.reshape(n, 6), quats.reshape(n, 8)], axis=1)
+        badqacc = data.warning[_BADQACC]
+        warnings_before = int(badqacc.number)
+        # The sensors (contact counts, read after the step) only at the last substep: they
+        # feed nothing back into the physics (no sensor history in this scene).
+        flags = model.opt.disableflags
+        model.opt.disableflags = flags | _NO_SENSORS
+        try:
+            for row in targets[:-1]:
+                mujoco.mj_setState(model, data, row, _MOCAP_STATE)
+                mujoco.mj_step(model, data)
+        finally:
+            model.opt.disableflags = flags
+        mujoco.mj_setState(model, data, targets[-1], _MOCAP_STATE)
+        mujoco.mj_step(model, data)
         self._target_pos, self._target_rot, self._target_quat = centres, rotations, final
 
         unstable = (
-            int(data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number) > warnings_before
-            or not np.all(np.isfinite(data.qpos))
-            or not np.all(np.isfinite(data.qvel))
+            int(badqacc.number) > warnings_before
+            or not np.isfinite(data.qpos).all()
+            or not np.isfinite(data.qvel).all()
         )
         return self._transition(values, unstable)
 
-    def _transition(
-        self, values: np.ndarray, unstable: bool
-    ) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+    def _measure(self, unstable: bool) -> StepMeasures:
+        """What the step did: lift, grasps, hold (updated here), termination, reach and angle."""
         assert self._current is not None
         scene, data = self._current.scene, self._current.data
         body = scene.object_body
         com = data.xipos[body]
         lift = float(com[2] - self._rest_com_z)
-        contacts = data.sensordata[scene.finger_contacts] > 0  # (2, 2)
-        grasping = contacts.all(axis=1)
+        grasping = (data.sensordata[scene.finger_contacts] > 0).all(axis=1)  # (2,)
         both = bool(grasping.all())
         centres = self._hand_centres(data, scene)
         obj_pos, obj_rot = data.xpos[body], data.xmat[body].reshape(3, 3)
@@ -698,9 +715,7 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
             termination = "off_table"
         elif com[2] > OBJECT_MAX_HEIGHT or speed > OBJECT_MAX_SPEED:
             termination = "out_of_bounds"
-        failure = termination not in ("", "success")
 
-        # Reward terms (module docstring, :mod:`dg16m_env.envs.lift_reward`).
         if self._grasp is not None:
             goal = self._target_world(obj_pos, obj_rot)
             depth = scene.gripper.contact_depth
@@ -713,34 +728,51 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
             nearest = np.clip(local, self._current.box_low, self._current.box_high)
             distance = np.linalg.norm(local - nearest, axis=1)
             angle = None
-        terms = reward_terms(
+        return StepMeasures(
+            lift=lift,
+            grasping=grasping,
+            holding=holding,
+            success=bool(success),
+            termination=termination,
+            unstable=unstable,
+            slip=slip,
             reach_distance=float(distance.mean()),
             jaw_angle=angle,
-            hands_grasping=int(grasping.sum()),
-            both_grasping=both,
-            lift=lift,
+        )
+
+    def _step_info(self, m: StepMeasures, terms: dict[str, float]) -> dict[str, Any]:
+        return {
+            "object_id": self.object_id,
+            "success": m.success,
+            "is_success": m.success,
+            "termination": m.termination,
+            "reward_terms": terms,
+            "lift": m.lift,
+            "hold_time": self._hold_count * self.control_dt if m.holding else 0.0,
+            "slip": m.slip,
+            "grasping": m.grasping.copy(),
+            "target_row": self._target_row,
+        }
+
+    def _transition(
+        self, values: np.ndarray, unstable: bool
+    ) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        m = self._measure(unstable)
+        terms = reward_terms(  # module docstring, :mod:`dg16m_env.envs.lift_reward`
+            reach_distance=m.reach_distance,
+            jaw_angle=m.jaw_angle,
+            hands_grasping=int(m.grasping.sum()),
+            both_grasping=bool(m.grasping.all()),
+            lift=m.lift,
             lift_height=self.lift_height,
-            holding=holding,
-            success=success,
-            failure=failure,
+            holding=m.holding,
+            success=m.success,
+            failure=m.termination not in ("", "success"),
             motion=values[MOTION_COMPONENTS],
             unstable=unstable,
         )
         reward = float(sum(terms.values()))
-        observation = self._observation()
-        info = {
-            "object_id": self.object_id,
-            "success": bool(success),
-            "is_success": bool(success),
-            "termination": termination,
-            "reward_terms": terms,
-            "lift": lift,
-            "hold_time": self._hold_count * self.control_dt if holding else 0.0,
-            "slip": slip,
-            "grasping": grasping.copy(),
-            "target_row": self._target_row,
-        }
-        return observation, reward, termination != "", False, info
+        return self._observation(), reward, m.termination != "", False, self._step_info(m, terms)
 
     # ----------------------------------------------------------------------------------------
     # Observation

@@ -79,3 +79,81 @@ def reward_terms(
     if unstable:  # MuJoCo reset the state: the observation is the reset state's, finite
         terms = dict.fromkeys(terms, 0.0) | {"failure": -weights["failure"]}
     return terms
+
+
+# --------------------------------------------------------------------------------------------
+# DualGraspLift-v1: reward modes in which success is always the best return
+# --------------------------------------------------------------------------------------------
+
+REWARD_MODES = ("dense", "normalized_dense", "sparse")
+"""The ``reward_mode`` values of ``dg16m_env/DualGraspLift-v1``."""
+
+DENSE_WEIGHTS: dict[str, float] = {
+    "reach": 1.0,
+    "align": 1.0,
+    "grasp": 1.0,
+    "lift": 1.0,
+    "hold": 1.0,
+}
+"""Largest value of each v1 dense term on a step that does not succeed (all terms are >= 0)."""
+
+MAX_STEP_REWARD = sum(DENSE_WEIGHTS.values())
+"""Largest dense reward of a step that does not succeed (5.0): the ``R`` of the success bound."""
+
+
+def dense_terms(
+    *,
+    reach_distance: float,
+    jaw_angle: float | None,
+    hands_grasping: int,
+    both_grasping: bool,
+    lift: float,
+    lift_height: float,
+    holding: bool,
+    success: bool,
+    steps_left: int,
+    unstable: bool,
+) -> dict[str, float]:
+    """The v1 dense reward terms of one step (their sum is the dense reward), all >= 0.
+
+    On a step that does not succeed: ``reach = 1 - tanh(5 d)`` (``d`` the mean distance, m, from
+    each hand's grasp centre to its target's, or to the object's box without a target),
+    ``align = 1 - theta / pi`` (mean jaw angle, rad; 0 without a target), ``grasp = 0.5`` per
+    hand grasping, ``lift = clip(lift / lift_height, 0, 1)`` while both hands grasp, ``hold = 1``
+    while a hold is under way: at most :data:`MAX_STEP_REWARD`. The success step pays
+    ``MAX_STEP_REWARD * (steps_left + 1)`` in ``success`` and 0 in the other terms: at least what
+    the step and every step left could earn without success. An unstable step pays nothing.
+
+    Args:
+        reach_distance, jaw_angle, hands_grasping, both_grasping, lift, lift_height, holding,
+            success, unstable: as for :func:`reward_terms`.
+        steps_left: steps the episode could still run after this one (>= 0).
+    """
+    terms = dict.fromkeys((*DENSE_WEIGHTS, "success"), 0.0)
+    if unstable:
+        return terms
+    if success:
+        terms["success"] = MAX_STEP_REWARD * float(max(steps_left, 0) + 1)
+        return terms
+    w = DENSE_WEIGHTS
+    terms["reach"] = w["reach"] * (1.0 - float(np.tanh(5.0 * reach_distance)))
+    if jaw_angle is not None:
+        terms["align"] = w["align"] * (1.0 - min(max(jaw_angle / np.pi, 0.0), 1.0))
+    terms["grasp"] = w["grasp"] * 0.5 * float(hands_grasping)
+    if both_grasping:
+        terms["lift"] = w["lift"] * min(max(lift / lift_height, 0.0), 1.0)
+    terms["hold"] = w["hold"] if holding else 0.0
+    return terms
+
+
+def mode_terms(mode: str, dense: dict[str, float], success: bool) -> dict[str, float]:
+    """The reward terms of ``mode`` from the step's :func:`dense_terms` (sum = the reward):
+    ``"dense"`` as they are, ``"normalized_dense"`` each divided by :data:`MAX_STEP_REWARD`,
+    ``"sparse"`` only ``success`` (1.0 on the success step, else 0.0)."""
+    if mode == "dense":
+        return dense
+    if mode == "normalized_dense":
+        return {name: value / MAX_STEP_REWARD for name, value in dense.items()}
+    if mode == "sparse":
+        return {"success": 1.0 if success else 0.0}
+    raise ValueError(f"reward_mode: expected one of {REWARD_MODES}, found {mode!r}")

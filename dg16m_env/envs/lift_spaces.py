@@ -78,3 +78,33 @@ def rotation_vector(rotations: np.ndarray) -> np.ndarray:
         mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rotations[index]).ravel())
         mujoco.mju_quat2Vel(out[index], quat, 1.0)
     return out
+
+
+def check_lift_action(action: object, space: object) -> np.ndarray:
+    """``action`` as a float64 (14,) array, or ``ValueError`` naming ``space`` and what was
+    wrong: not an array of floats, another shape, NaN or inf, or a value outside [-1, 1]."""
+
+    def bad(found: str) -> ValueError:
+        return ValueError(
+            f"action: expected an action in {space} (shape ({ACTION_SIZE},), "
+            f"finite floats in [-1, 1]), found {found}"
+        )
+
+    if not isinstance(action, np.ndarray):
+        try:
+            action = np.asarray(action)
+        except (TypeError, ValueError):
+            raise bad(type(action).__name__) from None
+    assert isinstance(action, np.ndarray)
+    if action.dtype.kind != "f":
+        raise bad(f"dtype {action.dtype}")
+    if action.shape != (ACTION_SIZE,):
+        raise bad(f"shape {action.shape}")
+    values = action.astype(np.float64)
+    if not np.abs(values).max() <= 1.0:  # False for NaN too
+        broken = np.flatnonzero(~np.isfinite(values))
+        if broken.size:
+            raise bad(f"NaN or inf at index {broken.tolist()}")
+        worst = int(np.argmax(np.abs(values)))
+        raise bad(f"{values[worst]!r} at index {worst}")
+    return values

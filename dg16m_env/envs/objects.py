@@ -1,10 +1,13 @@
 """The benchmark objects an environment draws from, with their compiled scenes cached.
 
 :class:`BenchmarkObjects` reads a benchmark file once (default: the one shipped with dg16m),
-draws an object with the environment's generator (or takes ``options={"object_id": ...}``), and
-keeps the loaded objects, compiled trial scenes and observations (shared by every environment of
-the process on the same benchmark), so resetting onto an object again costs nothing. Cached
-values are shared: do not modify them.
+lazily: the index (ids, rows, labels) at construction, each object's parts and carried mesh when
+the object is first used (``read_benchmark(..., lazy=True)``), so making an environment on the
+300-object real benchmark costs what the procedural one does. It draws an object with the
+environment's generator (or takes ``options={"object_id": ...}``), and keeps the loaded objects,
+compiled trial scenes and observations (shared by every environment of the process on the same
+benchmark), so resetting onto an object again costs nothing. Cached values are shared: do not
+modify them.
 """
 
 from __future__ import annotations
@@ -46,7 +49,8 @@ class BenchmarkObjects:
         object_ids: Sequence[str] | None = None,
         mesh_root: str | os.PathLike[str] | None = None,
     ) -> None:
-        self.ref = load_benchmark_ref(benchmark, mesh_root)
+        # Lazy: only the index is read here; an object's parts and mesh when it is first used.
+        self.ref = load_benchmark_ref(benchmark, mesh_root, lazy=True)
         known = self.ref.object_ids
         ids = list(known) if object_ids is None else [str(i) for i in object_ids]
         unknown = sorted(set(ids) - set(known))

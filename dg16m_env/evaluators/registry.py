@@ -63,15 +63,18 @@ class Evaluator(abc.ABC):
         it."""
         return None
 
+    def identity(self) -> dict[str, str]:
+        """What every result of this evaluator records of who made it: its name, its version and
+        the package version."""
+        return {
+            "evaluator": self.name,
+            "evaluator_version": self.version,
+            "package_version": package_version(),
+        }
+
     def result(self, **fields: Any) -> EvaluationResult:
-        """An :class:`EvaluationResult` of this evaluator: ``fields`` plus its name, its version
-        and the package version."""
-        return EvaluationResult(
-            evaluator=self.name,
-            evaluator_version=self.version,
-            package_version=package_version(),
-            **fields,
-        )
+        """An :class:`EvaluationResult` of this evaluator: ``fields`` plus :meth:`identity`."""
+        return EvaluationResult(**self.identity(), **fields)
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(name={self.name!r}, version={self.version!r})"

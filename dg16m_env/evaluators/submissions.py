@@ -114,14 +114,11 @@ class SubmissionEvaluator(Evaluator):
 
     def planned(self) -> dict[str, Any]:
         """See :meth:`Evaluator.planned`."""
-        from dataset_gen.io import package_version
         from dataset_gen.json_values import json_ready
 
         return json_ready(
             {
-                "evaluator": self.name,
-                "evaluator_version": self.version,
-                "package_version": package_version(),
+                **self.identity(),
                 "benchmark": self.ref.record(),
                 "parameters": self.run_parameters(),
                 "seeds": self.run_seeds(),

@@ -91,6 +91,7 @@ class PerturbationSpec:
         return self.n_perturbations + 1
 
     def to_dict(self) -> dict[str, Any]:
+        """The fields as a dict (:meth:`from_dict` reads it back)."""
         return asdict(self)
 
     @classmethod
@@ -232,12 +233,13 @@ class GraspLabels:
 
     @property
     def held(self) -> np.ndarray:
-        """(N, K + 1) bool: the trial held through the whole protocol."""
+        """(N, K + 1) bool, True where the trial held through the whole protocol."""
         return self.status == TrialStatus.SUCCESS
 
     @property
     def held_gravity(self) -> np.ndarray:
-        """(N, K + 1) bool: the trial ran and nothing broke before the end of *gravity*."""
+        """(N, K + 1) bool, True where the trial ran and nothing broke before the end of
+        *gravity*."""
         ran = self.status != TrialStatus.INVALID
         later = (self.failing_phase < 0) | (self.failing_phase > GRAVITY_PHASE)
         return ran & later

@@ -586,17 +586,19 @@ def trial_frames(
 ) -> tuple[list[np.ndarray], list[str]]:
     """Simulate one trial step by step and render it: :func:`replay_trial`'s frames and captions.
 
-    Frames are spread evenly over the part of the trial that decides the verdict (the whole
-    trial when the grasp held, up to the end of the failing phase when it failed), always with
-    the end of *close* and, for a failed trial, the first step out of bounds and the end of the
-    failing phase; an invalid grasp (not simulated) gives one frame of the open hands.
+    Frames cover the part of the trial that decides the verdict (the whole trial when the grasp
+    held, up to the end of the failing phase when it failed), as :func:`frame_steps` picks them:
+    up to as many frames as phase ends, ends of distinct phases (one frame per phase); more,
+    spread evenly in time; always with the end of *close* and, for a failed trial, the first
+    step out of bounds and the end of the failing phase. An invalid grasp (not simulated) gives
+    one frame of the open hands.
 
     Args:
         scene: the object's compiled scene.
         dual_grasp: (2, 4, 4) hand poses, gripper frame -> object frame (m).
         protocol: the trial protocol (default :class:`TrialProtocol`).
-        options: :func:`replay_trial`'s keywords: ``n_frames`` (evenly spread frames; the key
-            frames above come on top when not among them), ``width``, ``height`` (pixels) and
+        options: :func:`replay_trial`'s keywords: ``n_frames`` (frames as above; the key
+            frames come on top when not among them), ``width``, ``height`` (pixels) and
             ``camera`` (a ``mujoco.MjvCamera``, or a mapping overriding
             :func:`default_camera`'s ``lookat`` (m), ``distance`` (m), ``azimuth`` and
             ``elevation`` (degrees)).

@@ -74,17 +74,18 @@ class Reseat:
 
     @property
     def moved(self) -> np.ndarray:
-        """(N, 2) bool: hands moved."""
+        """(N, 2) bool, True for the hands that moved."""
         return self.shift > 0
 
     @property
     def penetrating(self) -> np.ndarray:
-        """(N, 2) bool: hands deeper than ``limit`` before re-seating."""
+        """(N, 2) bool, True for the hands deeper than ``limit`` before re-seating."""
         return self.depth_before > self.limit
 
     @property
     def not_cleared(self) -> np.ndarray:
-        """(N, 2) bool: hands still deeper than ``limit`` (they could not clear; not moved)."""
+        """(N, 2) bool, True for the hands still deeper than ``limit`` (they could not clear;
+        not moved)."""
         return self.depth_after > self.limit
 
     def summary(self) -> dict[str, Any]:

@@ -162,6 +162,7 @@ class SceneParameters:
         return (float(timeconst), float(self.solref[1]))
 
     def to_dict(self) -> dict[str, Any]:
+        """The fields as a JSON-ready dict, tuples as lists (:meth:`from_dict` reads it back)."""
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
 
 

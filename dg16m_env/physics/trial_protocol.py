@@ -28,15 +28,19 @@ whose state turns non-finite or whose object moves faster than :attr:`TrialProto
 Penetration is the deepest object contact while the object is held
 (before it first leaves the bounds; once it slips out, fingers closing on its edges mean nothing).
 
-Slip and rotation are measured by one function, :func:`object_motion`, and judged against the
-bounds by :meth:`TrialProtocol.out_of_bounds`; the step-by-step replay
-(:mod:`dg16m_env.physics.replay`) uses the same two.
+Slip and rotation are measured by one function,
+:func:`~dg16m_env.physics.trial_measures.object_motion`, and judged against the bounds by
+:meth:`TrialProtocol.out_of_bounds`; the step-by-step replay (:mod:`dg16m_env.physics.replay`)
+uses the same two.
 
 What lives here is shared by the engines that run trials: the validity check
 (:func:`check_initial_poses`, always in C MuJoCo), the :func:`schedule`, the controls, the phase
-segments (:func:`trial_segments`), the measures (:func:`measure_steps` of C MuJoCo states,
-:func:`step_measures` of measured numbers), :func:`out_steps` and the judge (:func:`judge`,
-:func:`analyse`; these five in :mod:`dg16m_env.physics.trial_measures`), and :func:`simulate` (full C rollouts, for replay). Running trials sits above:
+segments (:func:`trial_segments`) and :func:`simulate` (full C rollouts, for replay). The
+measures (:func:`~dg16m_env.physics.trial_measures.measure_steps` of C MuJoCo states,
+:func:`~dg16m_env.physics.trial_measures.step_measures` of measured numbers),
+:func:`~dg16m_env.physics.trial_measures.out_steps` and the judge
+(:func:`~dg16m_env.physics.trial_measures.judge`, :func:`~dg16m_env.physics.trial_measures.analyse`)
+are in :mod:`dg16m_env.physics.trial_measures`. Running trials sits above:
 :func:`dg16m_env.physics.trial.run_trials` picks the engine, its own C MuJoCo batches or MuJoCo Warp
 (:mod:`dg16m_env.physics.warp_trials`). Imports point one way, ``trial_protocol <- warp_trials <- trial``;
 :mod:`dg16m_env.physics.trial` re-exports every name defined here.
@@ -183,6 +187,7 @@ class TrialProtocol:
         )
 
     def to_dict(self) -> dict[str, Any]:
+        """The fields as a dict (:meth:`from_dict` reads it back)."""
         return asdict(self)
 
     def disturbances(self) -> DisturbanceProtocol:
@@ -285,12 +290,12 @@ class TrialResults:
 
     @property
     def success(self) -> np.ndarray:
-        """(N,) bool: the grasp held through every phase."""
+        """(N,) bool, True where the grasp held through every phase."""
         return self.status == TrialStatus.SUCCESS
 
     @property
     def valid(self) -> np.ndarray:
-        """(N,) bool: the trial ran (not invalid)."""
+        """(N,) bool, True where the trial ran (not invalid)."""
         return self.status != TrialStatus.INVALID
 
     def phase_name(self, index: int) -> str:

@@ -10,7 +10,7 @@ MuJoCo Warp (optional extra ``warp``; :class:`~dg16m_env.physics.simulator.Simul
   ``Data`` with one world per trial. Each world's squeeze controls and hand (mocap) poses are set
   once; the object's wrench schedule (the same for every trial of an object) lives on the device
   and a kernel writes step ``t``'s wrench before each step.
-* Phases run as in :func:`dg16m_env.physics.trial._run_batch`: one segment per phase
+* Phases run as in ``dg16m_env.physics.trial._run_batch``: one segment per phase
   (:func:`~dg16m_env.physics.trial_protocol.trial_segments`), every segment starting from the previous
   one's last state with the solver's warm start cleared (as each ``mujoco.rollout`` call does on
   the CPU).
@@ -122,6 +122,10 @@ class WarpRunner:
         scene: the object's compiled scene.
         plan: the trial's schedule (its wrench goes to the device once).
         simulator: a ``"warp"`` :class:`Simulator`.
+
+    Attributes:
+        overflowed: how many trials a buffer overflow made ``UNSTABLE`` so far (see the module
+            docstring).
 
     Raises:
         SimulatorError: the optional extra is missing or the device does not exist.
@@ -301,7 +305,7 @@ class WarpRunner:
         self, grasps: np.ndarray, protocol: TrialProtocol, early_exit: bool = True
     ) -> TrialResults:
         """Roll out and judge one batch of valid trials (at most :attr:`Simulator.worlds`), phase
-        by phase, exactly as :func:`dg16m_env.physics.trial._run_batch` does on the CPU."""
+        by phase, exactly as ``dg16m_env.physics.trial._run_batch`` does on the CPU."""
         scene, plan = self.scene, self.plan
         n = len(grasps)
         controls = trial_control_vectors(scene, grasps)

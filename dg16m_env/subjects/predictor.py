@@ -17,7 +17,9 @@ runs with your user's rights, sees your files and may use the network.
   BLAS threads), every thread reserves its stack, and CUDA maps far more than it uses, so GPU
   predictors need ``memory_limit_mb=0``. A limit below the child's baseline is a
   :class:`PredictorError`. The child also makes itself a process group leader and asks to be killed
-  when this process dies.
+  when this process dies. The predictor's own ``multiprocessing`` (pools, locks) uses this
+  process's start method, not "spawn"; SIGTERM ends the child through its normal exit, so what
+  it registered with the resource tracker is released.
 * The child imports the target and reports back; an import failure (module or file not found,
   missing attribute, not callable, an exception at import, ``startup_time_limit_s`` exceeded) is
   one :class:`PredictorError`, raised before any object is run.

@@ -12,6 +12,7 @@ import importlib
 import importlib.util
 import json
 import math
+import multiprocessing
 import os
 import resource
 import signal
@@ -19,7 +20,7 @@ import sys
 import time
 import traceback
 import zipfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from multiprocessing import get_context
 from multiprocessing.connection import Connection, wait
@@ -54,6 +55,13 @@ class _StartError(Exception):
     """A child process that did not become ready (the message says why)."""
 
 
+class _Stopped(BaseException):
+    """SIGTERM in the child (this process stops it): unwind and end normally, so that
+    multiprocessing's finalizers run (a semaphore made in the child, e.g. tqdm's lock, is
+    unlinked and unregistered from the resource tracker it shares with this process, which would
+    otherwise report it as leaked when this process exits)."""
+
+
 # --------------------------------------------------------------------------------------------
 # The target
 
@@ -84,7 +92,7 @@ def load_target(target: str, path: Sequence[str] = ()) -> Any:
     ``path`` entries go to the front of ``sys.path`` first; a file target's folder too (as
     ``python file.py`` does), and the file is imported as the module ``dg16m_target_<stem>``. A
     dotted ``attr`` is followed attribute by attribute. Use it for your own, trusted code
-    (:func:`run_predictor` calls it in the child process).
+    (:func:`~dg16m_env.subjects.predictor.run_predictor` calls it in the child process).
 
     Raises:
         PredictorError: a malformed target, a module or file not found, a missing attribute.
@@ -370,6 +378,21 @@ def _set_limits(memory_limit_mb: int) -> None:
     resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
 
 
+def _on_sigterm(owner: int) -> Callable[[int, Any], None]:
+    """The child's SIGTERM handler: raise :class:`_Stopped` once in the child itself; a process
+    the predictor forked (it inherits the handler) gets the default action, as before."""
+
+    def handler(signum: int, frame: Any) -> None:
+        if os.getpid() != owner:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            os.kill(os.getpid(), signal.SIGTERM)
+            return
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # a second one must not cut the unwinding
+        raise _Stopped
+
+    return handler
+
+
 def _child_main(
     conn: Connection,
     target: str,
@@ -377,9 +400,33 @@ def _child_main(
     memory_limit_mb: int,
     max_grasps: int,
     workdir: str,
+    start_method: str | None = None,
 ) -> None:
     """The child: set limits, import the target, then answer ``(index, observation)`` messages
-    until ``None`` or the end of the pipe (results in ``workdir/<index>.npz``)."""
+    until ``None`` or the end of the pipe (results in ``workdir/<index>.npz``); SIGTERM ends it
+    normally (:class:`_Stopped`).
+
+    ``start_method`` is the parent's default multiprocessing start method: the bootstrap of a
+    "spawn" child makes "spawn" its default, so without it the predictor's own locks and pools
+    (tqdm makes a lock for every progress bar) would use named semaphores registered with the
+    parent's resource tracker, and a child stopped mid-call left them "leaked".
+    """
+    signal.signal(signal.SIGTERM, _on_sigterm(os.getpid()))
+    if start_method is not None:
+        multiprocessing.set_start_method(start_method, force=True)
+    with contextlib.suppress(_Stopped):
+        _serve(conn, target, path, memory_limit_mb, max_grasps, workdir)
+
+
+def _serve(
+    conn: Connection,
+    target: str,
+    path: tuple[str, ...],
+    memory_limit_mb: int,
+    max_grasps: int,
+    workdir: str,
+) -> None:
+    """:func:`_child_main`'s work: the import, then the calls."""
     try:
         _set_limits(memory_limit_mb)
         predict = load_target(target, path)
@@ -387,6 +434,8 @@ def _child_main(
             raise PredictorError(
                 f"target {target!r}: expected a callable, found {type(predict).__name__}"
             )
+    except _Stopped:
+        raise
     except BaseException as exc:  # report anything that stops the import, SystemExit included
         message = str(exc) if isinstance(exc, PredictorError) else _describe(exc, memory_limit_mb)
         _send(conn, {"kind": "startup_error", "message": message})
@@ -469,6 +518,7 @@ class _Worker:
             self.spec.memory_limit_mb,
             self.max_grasps,
             str(self.workdir),
+            multiprocessing.get_start_method(),  # the child's own default becomes "spawn"
         )
         # Not a daemon: a daemonic process may not start processes (data loaders, pools).
         process = ctx.Process(target=_child_main, args=args, name="dg16m-predictor", daemon=False)

@@ -157,6 +157,10 @@ class SubmissionInvalid(SubmissionError):  # noqa: N818  (the name the evaluator
     Args:
         problems: what is wrong (at least one).
         path: the file, named in the message when given.
+
+    Attributes:
+        problems: every problem found, in the order found.
+        path: the file (None when not given).
     """
 
     def __init__(self, problems: Sequence[Problem], path: str | os.PathLike[str] | None = None):

@@ -16,7 +16,7 @@ stage has not vetted:
 4. each dataset's header: dtype, shape, storage (external, virtual, filters, chunk size) and its
    declared uncompressed size, per dataset and summed over the file;
 5. only then the values of the datasets that passed: finite, rigid, translations within
-   :data:`MAX_TRANSLATION` m.
+   :data:`~dg16m_env.subjects.submission.MAX_TRANSLATION` m.
 
 A hard link that gives one dataset or group two names (``objects/b`` = ``objects/a``) is allowed:
 it is an ordinary HDF5 name, the data is read (and counted against the size limits) once per
@@ -731,7 +731,8 @@ def read_submission(
         metadata and the file's sha256.
 
     Raises:
-        SubmissionInvalid: the file has problems (:attr:`SubmissionInvalid.problems` lists all).
+        SubmissionInvalid: the file has problems (its
+            :attr:`~dg16m_env.subjects.submission.SubmissionInvalid.problems` lists all).
         SubmissionError: the file changed while it was read.
     """
     problems, contents = _validate(path, object_ids, benchmark_sha256, embedded, limits)

@@ -43,9 +43,11 @@ def write_submission(
     """Write a submission file atomically (float64 poses and scores, uncompressed).
 
     The values are written as given (no finiteness or rigidity check): validate the result with
-    :func:`validate_submission`. A file for the shipped benchmark (``"embedded"``) that holds
-    only some of its objects is written with a :class:`PartialSubmissionWarning` saying how to
-    score a few objects instead (the evaluators refuse it).
+    :func:`~dg16m_env.subjects.submission_reader.validate_submission`. A file for the shipped
+    benchmark (``"embedded"``) that holds only some of its objects is written with a
+    :class:`PartialSubmissionWarning` saying how to score those objects on purpose
+    (``dg16m evaluate --objects`` / ``--limit``: a partial run; a full evaluation refuses the
+    file).
 
     Args:
         path: the file to write.
@@ -117,7 +119,8 @@ def _embedded_ids() -> frozenset[str]:
 
 def _warn_if_partial(path: Path, written: set[str]) -> None:
     """Say so when a shipped-benchmark submission holds only some of its objects (all of them
-    the benchmark's): the validator refuses it, so it cannot be scored as written."""
+    the benchmark's): a full evaluation refuses it; ``dg16m evaluate --objects`` / ``--limit``
+    scores it as a partial run."""
     import warnings
 
     expected = _embedded_ids()
@@ -125,10 +128,11 @@ def _warn_if_partial(path: Path, written: set[str]) -> None:
         return
     warnings.warn(
         f"{path}: expected dual grasps for all {len(expected)} objects of the shipped benchmark, "
-        f"found {len(written)}; the evaluators refuse a submission that leaves objects out "
-        "(each would count as a failure). To score a few objects, build a small benchmark of "
-        "them ('dg16m benchmark build --limit N --out DIR') and write the submission with "
-        "benchmark=<its sha256> (dg16m_env.evaluators.load_benchmark_ref(DIR/benchmark.h5).sha256)",
+        f"found {len(written)}; a full evaluation refuses a submission that leaves objects out "
+        "(each would count as a failure). To score only these objects on purpose, run "
+        f"'dg16m evaluate {path} --objects IDS' (IDS: their ids, comma-separated or a file with "
+        "one id a line; or '--limit N' when they are the benchmark's first N objects): the "
+        "result is marked partial and a leaderboard never ranks it",
         PartialSubmissionWarning,
         stacklevel=3,
     )
