@@ -13,6 +13,7 @@ from matplotlib.figure import Figure
 
 from dataset_gen.atomic import atomic_path, write_json_atomic
 from dataset_gen.io import package_version
+from dg16m_env.envs.objects import split_objects as split_objects  # its home before issue 40
 from dg16m_env.evaluators import EvaluationResult
 
 A = TypeVar("A")
@@ -68,13 +69,6 @@ def _boolean(text: str) -> bool:
     if value in ("false", "no", "0"):
         return False
     raise argparse.ArgumentTypeError(f"expected true or false, found {text!r}")
-
-
-def split_objects(object_ids: list[str]) -> tuple[list[str], list[str]]:
-    """``(train, held_out)``: every third object held out (benchmark order, so each family is
-    on both sides)."""
-    held_out = object_ids[::3]
-    return [i for i in object_ids if i not in held_out], held_out
 
 
 def reward_curve_callback() -> Any:

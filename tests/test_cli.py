@@ -283,6 +283,7 @@ def test_commands_come_from_the_entry_point_group_in_a_stable_order() -> None:
         "baselines.commands:register",
         "baselines.demo:register",
         "dg16m_env.cli.benchmark:register",
+        "dg16m_env.cli.demos:register",
         "dg16m_env.cli.evaluate:register",
         "dg16m_env.cli.sim:register",
         "leaderboard.commands:register",
@@ -292,6 +293,7 @@ def test_commands_come_from_the_entry_point_group_in_a_stable_order() -> None:
     assert names == [
         *SUBCOMMANDS[:4],
         *("generate", "stats", "verify", "baselines", "reproduce", "demo", "benchmark"),
+        "demos",
         "evaluate",
         *("submission", "sim"),
         "leaderboard",

@@ -54,6 +54,7 @@ def test_script_writes_checkpoint_curve_and_results(tmp_path: Path, module, argv
 @pytest.mark.parametrize(
     "module",
     [
+        "baselines.bc_lift",
         "baselines.sb3_lift",
         "baselines.sb3_pose",
         "baselines.sb3_select",

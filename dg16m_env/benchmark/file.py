@@ -1,6 +1,6 @@
 """The benchmark file (HDF5): :func:`write_benchmark` (atomic and deterministic: equal data,
 equal bytes) and :func:`read_benchmark` (validates the schema below), with the carried meshes and
-convex hulls, optionally on a grid (:func:`grid_multiples`, :func:`on_grid`).
+convex hulls, optionally on a grid (:func:`grid_multiples`, :func:`~dg16m_env.benchmark.file_lazy.on_grid`).
 
 File schema (``format = "dg16m-benchmark"``, ``schema_version = 2``)
 ----------------------------------------------------------------------
@@ -73,7 +73,6 @@ import json
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import h5py
 import numpy as np
@@ -88,6 +87,14 @@ from dataset_gen.io import (
 from dataset_gen.objects import (
     ConvexPart,
     part_from_dict,
+)
+from dg16m_env.benchmark.file_lazy import (
+    MAX_DECIMALS,
+    LazyBenchmarkObject,
+    LazyReader,
+    from_decimals,
+    on_grid,
+    read_checked,
 )
 from dg16m_env.benchmark.model import (
     FLOAT_SIM,
@@ -216,9 +223,9 @@ def _read_hulls(f: h5py.File, path: Path, o: int) -> list[list[ConvexPart]]:
     """The parts stored as hull arrays (``objects/hull_*``), per object (empty when none)."""
     if "objects/hull_objects" not in f:
         return [[] for _ in range(o)]
-    per_object = _read(f, path, "objects/hull_objects", (o,), "i")
-    counts = _read(f, path, "objects/hull_counts", (int(per_object.sum()),), "i")
-    vertices = _read(f, path, "objects/hull_vertices", (None, 3), "fi")
+    per_object = read_checked(f, path, "objects/hull_objects", (o,), "i")
+    counts = read_checked(f, path, "objects/hull_counts", (int(per_object.sum()),), "i")
+    vertices = read_checked(f, path, "objects/hull_vertices", (None, 3), "fi")
     if vertices.dtype.kind == "i":
         grid = f["objects/hull_vertices"].attrs.get("grid_m")
         if grid is None or not np.isfinite(grid) or not float(grid) > 0:
@@ -277,15 +284,6 @@ def _write_meshes(objects: h5py.Group, items: Sequence[BenchmarkObject], level: 
     _strings(objects, "mesh_sha256", [o.mesh_sha256 for o in items])
 
 
-MAX_DECIMALS = 9
-
-
-def _from_decimals(multiples: np.ndarray, decimals: int) -> np.ndarray:
-    """(V, 3) integers -> (V, 3) float64 ``multiples / 10**decimals`` (m): correctly rounded,
-    so equal to the float an OBJ file's decimal text parses to."""
-    return np.asarray(multiples, dtype=np.int64).astype(np.float64) / 10.0**decimals
-
-
 def _decimal_places(vertices: np.ndarray) -> int | None:
     """The fewest decimal places (<= :data:`MAX_DECIMALS`) that hold every coordinate exactly
     as an int32 multiple (a mesh read from an OBJ file's fixed-point text: 8 for trimesh's),
@@ -294,7 +292,7 @@ def _decimal_places(vertices: np.ndarray) -> int | None:
         scaled = np.round(vertices * 10.0**decimals)
         if np.abs(scaled).max(initial=0) >= 2**31:
             return None
-        if same_bits(_from_decimals(scaled.astype(np.int64), decimals), vertices + 0.0):
+        if same_bits(from_decimals(scaled.astype(np.int64), decimals), vertices + 0.0):
             return decimals  # (-0.0 + 0.0 is 0.0: negative zeros are stored apart)
     return None
 
@@ -306,8 +304,8 @@ def _read_meshes(
     object without one (procedural) or when the file carries none."""
     if "objects/mesh_counts" not in f:
         return [None] * o
-    counts = _read(f, path, "objects/mesh_counts", (o, 2), "i")
-    vertices = _read(f, path, "objects/mesh_vertices", (None, 3), "fi")
+    counts = read_checked(f, path, "objects/mesh_counts", (o, 2), "i")
+    vertices = read_checked(f, path, "objects/mesh_vertices", (None, 3), "fi")
     if vertices.dtype.kind == "i":
         decimals = f["objects/mesh_vertices"].attrs.get("decimals")
         if decimals is None or not 0 <= int(decimals) <= MAX_DECIMALS:
@@ -315,17 +313,17 @@ def _read_meshes(
                 f"{path}: objects/mesh_vertices: expected integer multiples with a 'decimals' "
                 f"attribute in [0, {MAX_DECIMALS}], found decimals {decimals!r}"
             )
-        vertices = _from_decimals(vertices, int(decimals))
+        vertices = from_decimals(vertices, int(decimals))
         if "objects/mesh_negative_zeros" in f:
-            zeros = _read(f, path, "objects/mesh_negative_zeros", (None,), "i")
+            zeros = read_checked(f, path, "objects/mesh_negative_zeros", (None,), "i")
             if zeros.size and (zeros.min() < 0 or zeros.max() >= vertices.size):
                 raise BenchmarkError(
                     f"{path}: objects/mesh_negative_zeros: expected flat indices in "
                     f"[0, {vertices.size}), found [{zeros.min()}, {zeros.max()}]"
                 )
             vertices.reshape(-1)[zeros] = -0.0
-    faces = _read(f, path, "objects/mesh_faces", (None, 3), "i")
-    hashes = [s.decode() for s in _read(f, path, "objects/mesh_sha256", (o,), "OS")]
+    faces = read_checked(f, path, "objects/mesh_faces", (None, 3), "i")
+    hashes = [s.decode() for s in read_checked(f, path, "objects/mesh_sha256", (o,), "OS")]
     if (
         counts.min(initial=0) < 0
         or counts[:, 0].sum() != len(vertices)
@@ -355,264 +353,6 @@ def _read_meshes(
             )
         out.append((v, fc, hashes[i]))
     return out
-
-
-class _LazyReader:
-    """What :func:`read_benchmark` (``lazy=True``) keeps of a file to read one object's parts and
-    carried mesh later: the index of the stored hulls and meshes (counts, hashes, encodings),
-    and the file's size and modification time (a changed file is refused). Picklable.
-
-    Attributes:
-        reads: object indices read so far, in order (each once: the object keeps what it read).
-    """
-
-    def __init__(self, f: h5py.File, path: Path, parts_json: list[str]) -> None:
-        o = len(parts_json)
-        self.path = path
-        stat = path.stat()
-        self.stamp = (stat.st_size, stat.st_mtime_ns)
-        self.parts_json = parts_json
-        self.reads: list[int] = []
-        # Hulls (objects/hull_*): per object, its first hull and hull count; hull vertex rows.
-        self.hull_first = np.zeros(o + 1, dtype=np.int64)
-        self.hull_starts = np.zeros(1, dtype=np.int64)
-        self.hull_grid: float | None = None
-        if "objects/hull_objects" in f:
-            per_object = _read(f, path, "objects/hull_objects", (o,), "i")
-            counts = _read(f, path, "objects/hull_counts", (int(per_object.sum()),), "i")
-            vertices = _dataset(f, path, "objects/hull_vertices", (None, 3), "fi")
-            if vertices.dtype.kind == "i":
-                grid = vertices.attrs.get("grid_m")
-                if grid is None or not np.isfinite(grid) or not float(grid) > 0:
-                    raise BenchmarkError(
-                        f"{path}: objects/hull_vertices: expected integer multiples with a "
-                        f"positive 'grid_m' attribute (m), found grid_m {grid!r}"
-                    )
-                self.hull_grid = float(grid)
-            if (
-                per_object.min(initial=0) < 0
-                or counts.min(initial=4) < 4
-                or counts.sum() != vertices.shape[0]
-            ):
-                raise BenchmarkError(
-                    f"{path}: objects/hull_counts: expected counts >= 4 summing to the "
-                    f"{vertices.shape[0]} hull vertices stored, found sum {int(counts.sum())}"
-                )
-            self.hull_first = np.concatenate([[0], np.cumsum(per_object, dtype=np.int64)])
-            self.hull_starts = np.concatenate([[0], np.cumsum(counts, dtype=np.int64)])
-        # Carried meshes (objects/mesh_*): per object, its first vertex and face.
-        self.mesh_counts = np.zeros((o, 2), dtype=np.int64)
-        self.mesh_decimals: int | None = None
-        self.negative_zeros = np.zeros(0, dtype=np.int64)
-        self.mesh_hashes = [""] * o
-        if "objects/mesh_counts" in f:
-            counts = _read(f, path, "objects/mesh_counts", (o, 2), "i")
-            vertices = _dataset(f, path, "objects/mesh_vertices", (None, 3), "fi")
-            faces = _dataset(f, path, "objects/mesh_faces", (None, 3), "i")
-            if vertices.dtype.kind == "i":
-                decimals = vertices.attrs.get("decimals")
-                if decimals is None or not 0 <= int(decimals) <= MAX_DECIMALS:
-                    raise BenchmarkError(
-                        f"{path}: objects/mesh_vertices: expected integer multiples with a "
-                        f"'decimals' attribute in [0, {MAX_DECIMALS}], found decimals {decimals!r}"
-                    )
-                self.mesh_decimals = int(decimals)
-                if "objects/mesh_negative_zeros" in f:
-                    zeros = _read(f, path, "objects/mesh_negative_zeros", (None,), "i")
-                    size = 3 * vertices.shape[0]
-                    if zeros.size and (zeros.min() < 0 or zeros.max() >= size):
-                        raise BenchmarkError(
-                            f"{path}: objects/mesh_negative_zeros: expected flat indices in "
-                            f"[0, {size}), found [{zeros.min()}, {zeros.max()}]"
-                        )
-                    self.negative_zeros = zeros.astype(np.int64)
-            hashes = _read(f, path, "objects/mesh_sha256", (o,), "OS")
-            self.mesh_hashes = [s.decode() for s in hashes]
-            if (
-                counts.min(initial=0) < 0
-                or counts[:, 0].sum() != vertices.shape[0]
-                or counts[:, 1].sum() != faces.shape[0]
-            ):
-                raise BenchmarkError(
-                    f"{path}: objects/mesh_counts: expected counts summing to the "
-                    f"{vertices.shape[0]} vertices and {faces.shape[0]} faces stored, found "
-                    f"sums {counts.sum(axis=0).tolist()}"
-                )
-            self.mesh_counts = counts.astype(np.int64)
-        self.mesh_first = np.concatenate(
-            [np.zeros((1, 2), dtype=np.int64), np.cumsum(self.mesh_counts, axis=0)]
-        )
-
-    def n_parts(self, i: int) -> int:
-        """Object ``i``'s number of parts, without reading them."""
-        return len(json.loads(self.parts_json[i])) + int(
-            self.hull_first[i + 1] - self.hull_first[i]
-        )
-
-    def has_mesh(self, i: int) -> bool:
-        return bool(self.mesh_counts[i, 0] > 0)
-
-    def read(
-        self, i: int, object_id: str
-    ) -> tuple[tuple[ConvexPart, ...], tuple[np.ndarray, np.ndarray, str] | None]:
-        """Object ``i``'s parts and carried mesh (``None``), as :func:`read_benchmark` reads them
-        eagerly (same checks, same values).
-
-        Raises:
-            BenchmarkError: a broken part or mesh, or the file changed since it was indexed.
-        """
-        path = self.path
-        try:
-            stat = path.stat()
-        except OSError as exc:
-            raise BenchmarkError(f"{path}: expected the benchmark file, found: {exc}") from None
-        if (stat.st_size, stat.st_mtime_ns) != self.stamp:
-            raise BenchmarkError(
-                f"{path}: expected the file as it was when read, found it changed since (read "
-                "the benchmark again)"
-            )
-        try:
-            parts = [part_from_dict(p) for p in json.loads(self.parts_json[i])]
-        except (ValueError, TypeError, Dg16mError) as exc:
-            raise BenchmarkError(f"{path}: objects/parts[{i}] ({object_id}): {exc}") from None
-        first, last = int(self.hull_first[i]), int(self.hull_first[i + 1])
-        mesh = None
-        with h5py.File(path, "r") as f:
-            if last > first:
-                rows = slice(int(self.hull_starts[first]), int(self.hull_starts[last]))
-                block = f["objects/hull_vertices"][rows]
-                if self.hull_grid is not None:
-                    block = on_grid(block, self.hull_grid)
-                identity = np.eye(4)
-                base = self.hull_starts[first]
-                for k in range(first, last):
-                    a, b = self.hull_starts[k] - base, self.hull_starts[k + 1] - base
-                    try:
-                        parts.append(
-                            ConvexPart("mesh", identity, (), block[a:b].astype(np.float64))
-                        )
-                    except Dg16mError as exc:
-                        raise BenchmarkError(
-                            f"{path}: objects/hull_vertices, hull {k}: {exc}"
-                        ) from None
-            if self.has_mesh(i):
-                mesh = self._read_mesh(f, i)
-        self.reads.append(i)
-        return tuple(parts), mesh
-
-    def _read_mesh(self, f: h5py.File, i: int) -> tuple[np.ndarray, np.ndarray, str]:
-        path = self.path
-        v0, f0 = (int(x) for x in self.mesh_first[i])
-        nv, nf = (int(x) for x in self.mesh_counts[i])
-        raw = f["objects/mesh_vertices"][v0 : v0 + nv]
-        if self.mesh_decimals is not None:
-            v = _from_decimals(raw, self.mesh_decimals)
-            zeros = self.negative_zeros
-            mine = zeros[(zeros >= 3 * v0) & (zeros < 3 * (v0 + nv))] - 3 * v0
-            v.reshape(-1)[mine] = -0.0
-        else:
-            v = raw
-        v = v.astype(np.float64)
-        fc = f["objects/mesh_faces"][f0 : f0 + nf].astype(np.int64)
-        if fc.size and (fc.min() < 0 or fc.max() >= nv):
-            raise BenchmarkError(
-                f"{path}: objects/mesh_faces of object {i}: expected indices in [0, {nv}), "
-                f"found [{fc.min()}, {fc.max()}]"
-            )
-        digest = mesh_sha256(v, fc)
-        if digest != self.mesh_hashes[i]:
-            raise BenchmarkError(
-                f"{path}: objects/mesh_sha256 of object {i}: expected the stored mesh to hash to "
-                f"{self.mesh_hashes[i]}, found {digest} (the mesh bytes were changed)"
-            )
-        return v, fc, self.mesh_hashes[i]
-
-
-class LazyBenchmarkObject(BenchmarkObject):
-    """A :class:`~dg16m_env.benchmark.model.BenchmarkObject` of a file read with
-    ``read_benchmark(path, lazy=True)``: its ``parts``, ``mesh_vertices`` and ``mesh_faces``
-    are read from the file on first use and kept (:attr:`loaded` says whether they were);
-    ``has_mesh`` and ``repr`` read nothing. Everything else is an ordinary benchmark object."""
-
-    def __init__(self, reader: _LazyReader, index: int, **fields: Any) -> None:
-        for name, value in fields.items():
-            object.__setattr__(self, name, value)
-        object.__setattr__(self, "mesh_sha256", reader.mesh_hashes[index])
-        object.__setattr__(self, "_reader", reader)
-        object.__setattr__(self, "_index", index)
-        object.__setattr__(self, "_stored", None)
-
-    def _read(self) -> tuple[tuple[ConvexPart, ...], tuple[np.ndarray, np.ndarray, str] | None]:
-        if self._stored is None:
-            object.__setattr__(self, "_stored", self._reader.read(self._index, self.object_id))
-        return self._stored
-
-    @property
-    def loaded(self) -> bool:
-        """Whether the parts and mesh were read from the file."""
-        return self._stored is not None
-
-    @property  # type: ignore[override]
-    def parts(self) -> tuple[ConvexPart, ...]:
-        return self._read()[0]
-
-    @property  # type: ignore[override]
-    def mesh_vertices(self) -> np.ndarray | None:
-        mesh = self._read()[1]
-        return None if mesh is None else mesh[0]
-
-    @property  # type: ignore[override]
-    def mesh_faces(self) -> np.ndarray | None:
-        mesh = self._read()[1]
-        return None if mesh is None else mesh[1]
-
-    @property
-    def has_mesh(self) -> bool:
-        return self._reader.has_mesh(self._index)
-
-    def __repr__(self) -> str:
-        origin = f"{self.family} seed {self.seed}" if self.family else f"mesh {self.file!r}"
-        return (
-            f"BenchmarkObject({self.object_id!r}, {origin}, scale {self.scale:.4g}, "
-            f"mass {self.mass:.4g} kg, {self._reader.n_parts(self._index)} convex parts"
-            f"{'' if self.loaded else ', not read yet'})"
-        )
-
-
-def _dataset(
-    f: h5py.File, path: Path, key: str, shape: tuple[int | None, ...], kinds: str
-) -> h5py.Dataset:
-    """Like :func:`_read`, without reading the data."""
-    if key not in f:
-        raise BenchmarkError(f"{path}: expected dataset {key!r}, found it missing")
-    ds = f[key]
-    if (
-        ds.dtype.kind not in kinds
-        or ds.ndim != len(shape)
-        or any(want is not None and got != want for got, want in zip(ds.shape, shape, strict=True))
-    ):
-        raise BenchmarkError(
-            f"{path}: {key}: expected shape {shape} of kind {kinds!r}, found {ds.shape} {ds.dtype}"
-        )
-    return ds
-
-
-def _read(
-    f: h5py.File, path: Path, key: str, shape: tuple[int | None, ...], kinds: str
-) -> np.ndarray:
-    if key not in f:
-        raise BenchmarkError(f"{path}: expected dataset {key!r}, found it missing")
-    arr = f[key][()]
-    if (
-        arr.dtype.kind not in kinds
-        or arr.ndim != len(shape)
-        or any(want is not None and got != want for got, want in zip(arr.shape, shape, strict=True))
-    ):
-        raise BenchmarkError(
-            f"{path}: {key}: expected shape {shape} of kind {kinds!r}, found {arr.shape} "
-            f"{arr.dtype}"
-        )
-    return arr
 
 
 def read_benchmark(path: str | os.PathLike[str], *, lazy: bool = False) -> Benchmark:
@@ -667,48 +407,48 @@ def read_benchmark(path: str | os.PathLike[str], *, lazy: bool = False) -> Bench
             metadata = json.loads(f.attrs["metadata"])
         except (KeyError, ValueError) as exc:
             raise BenchmarkError(f"{path}: expected JSON metadata, found: {exc}") from None
-        ids = [s.decode() for s in _read(f, path, "objects/ids", (None,), "OS")]
+        ids = [s.decode() for s in read_checked(f, path, "objects/ids", (None,), "OS")]
         o = len(ids)
-        families = [s.decode() for s in _read(f, path, "objects/families", (o,), "OS")]
-        files = [s.decode() for s in _read(f, path, "objects/files", (o,), "OS")]
-        parts_json = [s.decode() for s in _read(f, path, "objects/parts", (o,), "OS")]
-        seeds = _read(f, path, "objects/seeds", (o,), "i")
-        scales = _read(f, path, "objects/scales", (o,), "f")
-        masses = _read(f, path, "objects/masses", (o,), "f")
+        families = [s.decode() for s in read_checked(f, path, "objects/families", (o,), "OS")]
+        files = [s.decode() for s in read_checked(f, path, "objects/files", (o,), "OS")]
+        parts_json = [s.decode() for s in read_checked(f, path, "objects/parts", (o,), "OS")]
+        seeds = read_checked(f, path, "objects/seeds", (o,), "i")
+        scales = read_checked(f, path, "objects/scales", (o,), "f")
+        masses = read_checked(f, path, "objects/masses", (o,), "f")
         reseat_max = (
-            _read(f, path, "objects/reseat_max", (o,), "f")
+            read_checked(f, path, "objects/reseat_max", (o,), "f")
             if "objects/reseat_max" in f
             else np.zeros(o)
         )
         centers = (
-            _read(f, path, "objects/centers_of_mass", (o, 3), "f")
+            read_checked(f, path, "objects/centers_of_mass", (o, 3), "f")
             if "objects/centers_of_mass" in f
             else None
         )
         if lazy:
-            reader: _LazyReader | None = _LazyReader(f, path, parts_json)
+            reader: LazyReader | None = LazyReader(f, path, parts_json)
             meshes: list[tuple[np.ndarray, np.ndarray, str] | None] = [None] * o
             hulls: list[list[ConvexPart]] = [[] for _ in range(o)]
         else:
             reader = None
             meshes = _read_meshes(f, path, o)
             hulls = _read_hulls(f, path, o)
-        index = _read(f, path, "grasps/object_index", (None,), "i")
+        index = read_checked(f, path, "grasps/object_index", (None,), "i")
         n = index.size
         arrays = {
-            "poses": _read(f, path, "grasps/poses", (n, 2, 4, 4), "f"),
-            "contact_points": _read(f, path, "grasps/contact_points", (n, 4, 3), "f"),
-            "contact_normals": _read(f, path, "grasps/contact_normals", (n, 4, 3), "f"),
-            "source": _read(f, path, "grasps/source", (n,), "i"),
-            "fc_passed": _read(f, path, "grasps/fc_passed", (n,), "b"),
-            "fc_loss": _read(f, path, "grasps/fc_loss", (n,), "f"),
+            "poses": read_checked(f, path, "grasps/poses", (n, 2, 4, 4), "f"),
+            "contact_points": read_checked(f, path, "grasps/contact_points", (n, 4, 3), "f"),
+            "contact_normals": read_checked(f, path, "grasps/contact_normals", (n, 4, 3), "f"),
+            "source": read_checked(f, path, "grasps/source", (n,), "i"),
+            "fc_passed": read_checked(f, path, "grasps/fc_passed", (n,), "b"),
+            "fc_loss": read_checked(f, path, "grasps/fc_loss", (n,), "f"),
             "reseat_shift": (
-                _read(f, path, "grasps/reseat_shift", (n, 2), "f")
+                read_checked(f, path, "grasps/reseat_shift", (n, 2), "f")
                 if "grasps/reseat_shift" in f
                 else np.zeros((n, 2))
             ),
             "hand_line_distance": (
-                _read(f, path, "grasps/hand_line_distance", (n,), "f")
+                read_checked(f, path, "grasps/hand_line_distance", (n,), "f")
                 if "grasps/hand_line_distance" in f
                 else None
             ),
@@ -717,22 +457,22 @@ def read_benchmark(path: str | os.PathLike[str], *, lazy: bool = False) -> Bench
         for name in TrialResults.ARRAY_FIELDS:
             shape: tuple[int | None, ...] = (n, 2) if name.startswith("contacts") else (n,)
             kinds = "f" if name in FLOAT_SIM else ("b" if name == "ejected" else "i")
-            sim[name] = _read(f, path, f"sim/{name}", shape, kinds)
+            sim[name] = read_checked(f, path, f"sim/{name}", shape, kinds)
         try:
             parameters = BenchmarkParameters.from_dict(metadata.get("parameters", {}))
         except Dg16mError as exc:
             raise BenchmarkError(f"{path}: metadata: {exc}") from None
         trials = parameters.perturbation.trials
         label_arrays = {
-            "status": _read(f, path, "labels/trial_status", (n, trials), "i"),
-            "failing_phase": _read(f, path, "labels/trial_phase", (n, trials), "i"),
-            "seeds": _read(f, path, "labels/seeds", (n,), "i"),
+            "status": read_checked(f, path, "labels/trial_status", (n, trials), "i"),
+            "failing_phase": read_checked(f, path, "labels/trial_phase", (n, trials), "i"),
+            "seeds": read_checked(f, path, "labels/seeds", (n,), "i"),
         }
         stored_p = {
-            "p_success": _read(f, path, "labels/p_success", (n,), "f"),
-            "p_gravity": _read(f, path, "labels/p_gravity", (n,), "f"),
+            "p_success": read_checked(f, path, "labels/p_success", (n,), "f"),
+            "p_gravity": read_checked(f, path, "labels/p_gravity", (n,), "f"),
         }
-        stored_label = _read(f, path, "labels/label", (n,), "b")
+        stored_label = read_checked(f, path, "labels/label", (n,), "b")
     codes = label_arrays["status"]
     if n and not np.isin(codes, [s.value for s in TrialStatus]).all():
         raise BenchmarkError(
@@ -855,9 +595,3 @@ def same_bits(a: np.ndarray, b: np.ndarray) -> bool:
 def grid_multiples(vertices: np.ndarray, grid: float) -> np.ndarray:
     """(V, 3) vertices (m) -> (V, 3) int64 nearest multiples of ``grid`` (m)."""
     return np.round(np.asarray(vertices, dtype=np.float64) / grid).astype(np.int64)
-
-
-def on_grid(multiples: np.ndarray, grid: float) -> np.ndarray:
-    """(V, 3) integer multiples of ``grid`` (m) -> (V, 3) float64 vertices (m); the one
-    formula both the build and the reader use, so stored hulls are the simulated ones."""
-    return np.asarray(multiples, dtype=np.int64).astype(np.float64) * grid

@@ -111,7 +111,8 @@ steps), ``info["success"]`` and ``info["is_success"]`` are True and the episode 
 step that breaks the hold ends it; a new one may begin at once. The episode also terminates, as
 a failure, when the object's centre of mass leaves the table's footprint (``|x|`` or ``|y|``
 over 1 m: it fell off), rises above
-:data:`OBJECT_MAX_HEIGHT` or moves faster than :data:`OBJECT_MAX_SPEED` (thrown), or the
+:data:`~dg16m_env.envs.lift_measures.OBJECT_MAX_HEIGHT` or moves faster than
+:data:`~dg16m_env.envs.lift_measures.OBJECT_MAX_SPEED` (thrown), or the
 simulation becomes unstable; ``info["termination"]`` names the cause (``"success"``,
 ``"off_table"``, ``"out_of_bounds"``, ``"unstable"``, or ``""`` while running). Episodes are
 truncated by the registered ``TimeLimit`` (200 steps = 10 s).
@@ -184,6 +185,11 @@ Version history
 * v0: initial. Later (same id, same default): `benchmark` also takes a shipped benchmark's
   short name (`"procedural"`, the default, or `"real"`: 300 furniture models, shipped since
   2026-12-03), and mesh benchmarks that carry their meshes need no `mesh_root`.
+* v1 (2026-12-05, :mod:`dg16m_env.envs.dual_grasp_lift_v1`, ``dg16m_env/DualGraspLift-v1``):
+  reward modes in which success is the best return (v0's dense reward pays a policy that lifts
+  5 cm and hovers more than one that succeeds), observation modes with relative features,
+  ``info["fail"]``, ``step()`` after the end refused, state save and restore, a target grasp by
+  default. v0 stays registered unchanged (``gym.make`` notes that v1 exists).
 """
 
 from __future__ import annotations
@@ -204,6 +210,15 @@ from dataset_gen.checks import check_number
 from dg16m_env._compat import moved_names
 from dg16m_env.benchmark.ref import BenchmarkRef
 from dg16m_env.envs.common import RENDER_MODES, RenderModes, check_render_mode
+from dg16m_env.envs.lift_measures import (  # the three constants: their old import path
+    OBJECT_MAX_HEIGHT,  # noqa: F401
+    OBJECT_MAX_SPEED,  # noqa: F401
+    TERMINATIONS,  # noqa: F401
+    Hold,
+    LiftStepMeasures,
+    termination_of,
+    update_hold,
+)
 from dg16m_env.envs.lift_reward import jaw_angle, reward_terms
 from dg16m_env.envs.lift_spaces import (
     ACTION_SIZE,
@@ -220,7 +235,6 @@ from dg16m_env.envs.lift_targets import check_reset_options, parse_target_option
 from dg16m_env.envs.objects import CACHE_SIZE, BenchmarkObjects
 from dg16m_env.envs.spaces import rotation_to_6d
 from dg16m_env.physics.lift_scene import (
-    TABLE_HALF_SIZE,
     LiftScene,
     compile_lift_scene,
     hand_points,
@@ -242,12 +256,6 @@ HAND_WORKSPACE_XY = 1.2
 HAND_WORKSPACE_TOP = 1.5
 """Commanded grasp centres stay below this height (m)."""
 
-OBJECT_MAX_HEIGHT = 2.0
-"""An object whose centre of mass rises above this (m) ends the episode (failure)."""
-
-OBJECT_MAX_SPEED = 10.0
-"""An object faster than this (m/s) ends the episode (failure)."""
-
 STABLE_POSE_CHOICES = 3
 """The resting pose is drawn among this many most probable stable poses."""
 
@@ -268,8 +276,6 @@ SETTLE_TIME = 0.2
 
 TARGET_MIN_P = 0.5
 """Benchmark target rows need ``p("full") >=`` this (and a force-closure pass)."""
-TERMINATIONS = ("success", "off_table", "out_of_bounds", "unstable")
-"""The values of ``info["termination"]`` when an episode terminates (``""`` while it runs)."""
 
 _MOCAP_STATE = int(mujoco.mjtState.mjSTATE_MOCAP_POS | mujoco.mjtState.mjSTATE_MOCAP_QUAT)
 """The hand targets of a substep, one ``mj_setState`` row: both flanges, then both quaternions."""
@@ -280,24 +286,6 @@ _NO_SENSORS = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 # --------------------------------------------------------------------------------------------
 # Per-object data (cached)
 # --------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class StepMeasures:
-    """What one control step did (:meth:`DualGraspLiftEnv._measure`): centre-of-mass ``lift``
-    (m), ``grasping`` ((2,) bool), ``holding``, ``success``, ``termination`` (``""`` while
-    running), ``unstable``, ``slip`` ((2,) m), mean ``reach_distance`` (m), mean ``jaw_angle``
-    (rad, None without a target)."""
-
-    lift: float
-    grasping: np.ndarray
-    holding: bool
-    success: bool
-    termination: str
-    unstable: bool
-    slip: np.ndarray
-    reach_distance: float
-    jaw_angle: float | None
 
 
 @dataclass
@@ -674,7 +662,7 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
         )
         return self._transition(values, unstable)
 
-    def _measure(self, unstable: bool) -> StepMeasures:
+    def _measure(self, unstable: bool) -> LiftStepMeasures:
         """What the step did: lift, grasps, hold (updated here), termination, reach and angle."""
         assert self._current is not None
         scene, data = self._current.scene, self._current.data
@@ -686,35 +674,19 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
         centres = self._hand_centres(data, scene)
         obj_pos, obj_rot = data.xpos[body], data.xmat[body].reshape(3, 3)
 
-        # Hold (module docstring): begins lifted with both hands grasping, continues while
-        # lifted without slip at the hands' grasp centres (contacts may flicker meanwhile).
-        slip = np.zeros(2)
-        lifted = lift >= self.lift_height and not unstable
-        holding = False
-        if lifted and self._hold_anchor is not None:
-            moved = self._hold_anchor @ obj_rot.T + obj_pos
-            slip = np.linalg.norm(moved - centres, axis=1)
-            holding = bool(np.all(slip < self.max_slip))
-            self._hold_count += 1
-        if not holding:  # (re)start the hold here, or drop it
-            self._hold_count = 0
-            self._hold_anchor = None
-            slip = np.zeros(2)
-            if lifted and both:
-                self._hold_anchor = (centres - obj_pos) @ obj_rot  # object-frame points
-                holding = True
+        hold, holding, slip = update_hold(  # module docstring, *Success*
+            Hold(self._hold_anchor, self._hold_count),
+            lifted=lift >= self.lift_height and not unstable,
+            both_grasping=both,
+            centres=centres,
+            obj_pos=obj_pos,
+            obj_rot=obj_rot,
+            max_slip=self.max_slip,
+        )
+        self._hold_anchor, self._hold_count = hold.anchor, hold.count
         success = holding and self._hold_count >= self.hold_steps
-
-        termination = ""
         speed = float(np.linalg.norm(data.qvel[scene.object_qvel][:3])) if not unstable else 0.0
-        if unstable:
-            termination = "unstable"
-        elif success:
-            termination = "success"
-        elif abs(com[0]) > TABLE_HALF_SIZE or abs(com[1]) > TABLE_HALF_SIZE:
-            termination = "off_table"
-        elif com[2] > OBJECT_MAX_HEIGHT or speed > OBJECT_MAX_SPEED:
-            termination = "out_of_bounds"
+        termination = termination_of(com=com, speed=speed, unstable=unstable, success=success)
 
         if self._grasp is not None:
             goal = self._target_world(obj_pos, obj_rot)
@@ -728,7 +700,7 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
             nearest = np.clip(local, self._current.box_low, self._current.box_high)
             distance = np.linalg.norm(local - nearest, axis=1)
             angle = None
-        return StepMeasures(
+        return LiftStepMeasures(
             lift=lift,
             grasping=grasping,
             holding=holding,
@@ -740,7 +712,7 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
             jaw_angle=angle,
         )
 
-    def _step_info(self, m: StepMeasures, terms: dict[str, float]) -> dict[str, Any]:
+    def _step_info(self, m: LiftStepMeasures, terms: dict[str, float]) -> dict[str, Any]:
         return {
             "object_id": self.object_id,
             "success": m.success,

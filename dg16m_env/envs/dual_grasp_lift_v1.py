@@ -8,7 +8,7 @@ what a learner sees and earns:
 * **Reward modes** in which success is always the best return (*Rewards*).
 * **Observation modes**, with the relative features a policy needs (*Observation modes*).
 * ``info["success"]`` and ``info["fail"]`` on every step; the episode ends itself at
-  ``max_episode_steps`` (``truncated``); ``step()`` after the episode ended raises
+  ``episode_steps`` (``truncated``); ``step()`` after the episode ended raises
   ``RuntimeError`` until ``reset()``.
 * :meth:`DualGraspLiftV1Env.get_state` / :meth:`~DualGraspLiftV1Env.set_state` restore a
   simulation exactly (same machine): the steps after a restore give the same bytes.
@@ -29,7 +29,7 @@ Rewards
   the target, rad; 0 without one), ``grasp = 0.5`` per hand grasping with both fingers,
   ``lift = clip(lift / lift_height, 0, 1)`` while both hands grasp, ``hold = 1`` while a hold is
   under way. The **success step pays** ``R * (T - t + 1)`` (``success``, the other terms 0),
-  where ``t`` is the step's number (1 for the first step) and ``T`` = ``max_episode_steps``. An
+  where ``t`` is the step's number (1 for the first step) and ``T`` = ``episode_steps`` (200). An
   unstable step and a failed episode's last step pay 0; a failure ends the episode, so it
   forfeits what the steps left could have paid.
 * ``"normalized_dense"``: the dense terms divided by ``R`` (a step pays at most 1; the success
@@ -76,7 +76,7 @@ Observation modes
                                     + 6D rotation per hand; 0 without a target
   ``target_flag``               1   1 with a target grasp, else 0
   ``previous_action``           14  the last action (0 after reset)
-  ``elapsed``                   1   steps taken / ``max_episode_steps``
+  ``elapsed``                   1   steps taken / ``episode_steps``
   ``hold``                      1   the current hold's length / ``hold_time`` (0-1)
   ============================  ==  ============================================================
 
@@ -88,18 +88,23 @@ Observation modes
   ``DualGraspPose-v0``, :mod:`dg16m_env.physics.cameras`, drawn with the env's generator at
   reset) saw of the object, carried with the object's pose as it moves (an object tracker).
 
-Arguments (beyond v0's: ``benchmark``, ``object_ids``, ``mesh_root``, ``lift_height``,
-``hold_time``, ``render_mode``, ``width``, ``height``)
--------------------------------------------------------------------------------------------
+Arguments
+---------
+v0's (``benchmark``, ``object_ids``, ``mesh_root``, ``lift_height``, ``hold_time``,
+``render_mode``, ``width``, ``height``), and:
+
 * ``target_grasp``: ``"benchmark"`` (default) or ``None`` (v0's default was ``None``).
 * ``reward_mode``: ``"dense"`` (default), ``"normalized_dense"`` or ``"sparse"``.
 * ``obs_mode``: ``"state"`` (default), ``"state_dict"`` or ``"pointcloud"``.
 * ``n_points`` (512), ``n_cameras`` (1 or 2), ``camera_resolution`` (128 pixels): the
   ``"pointcloud"`` mode's cloud.
 
-``T`` is the registered ``max_episode_steps`` (200 = 10 s at 20 Hz), or the value given to
-``gym.make(..., max_episode_steps=...)``; made without ``gym.make``, the env uses
-:data:`EPISODE_STEPS`.
+* ``episode_steps``: ``T``, the steps after which the env truncates the episode itself
+  (:data:`EPISODE_STEPS` = 200 = 10 s at 20 Hz, the registered ``max_episode_steps``). It sets
+  the reward bound and the ``elapsed`` fraction; for a longer episode give
+  ``gym.make(..., episode_steps=N, max_episode_steps=N)`` (Gymnasium's ``TimeLimit`` wrapper
+  would cut it at 200, and the env cannot see that wrapper). A shorter ``max_episode_steps``
+  alone keeps ``T`` = 200: a success still pays at least what the steps left could.
 
 Info
 ----
@@ -141,7 +146,7 @@ from dg16m_env.envs.lift_spaces import ACTION_SIZE
 from dg16m_env.envs.spaces import rotation_to_6d
 
 EPISODE_STEPS = 200
-"""``T`` when the env is made without ``gym.make`` (the registered ``max_episode_steps``)."""
+"""``T`` by default (``episode_steps``; the registered ``max_episode_steps``)."""
 
 FAILURES = ("off_table", "out_of_bounds", "unstable")
 """The terminations that are failures (``info["fail"]``)."""
@@ -150,6 +155,24 @@ STATE_VERSION = 1
 """Version of the :meth:`DualGraspLiftV1Env.get_state` dictionary."""
 
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+_STATE_KEYS = (
+    "version",
+    "object_id",
+    "physics",
+    "commanded_centres",
+    "commanded_rotations",
+    "commanded_quaternions",
+    "target_grasp",
+    "target_row",
+    "rest_height",
+    "hold_anchor",
+    "hold_count",
+    "elapsed_steps",
+    "episode_steps",
+    "previous_action",
+    "ended",
+    "cloud",
+)
 
 
 class DualGraspLiftV1Env(DualGraspLiftEnv):
@@ -169,6 +192,7 @@ class DualGraspLiftV1Env(DualGraspLiftEnv):
         n_points: int = POINTCLOUD_SIZE,
         n_cameras: int = 1,
         camera_resolution: int = 128,
+        episode_steps: int = EPISODE_STEPS,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -181,6 +205,9 @@ class DualGraspLiftV1Env(DualGraspLiftEnv):
         self.n_cameras = check_integer("n_cameras", n_cameras, minimum=1, error=ValueError)
         if self.n_cameras > 2:
             raise ValueError(f"n_cameras: expected 1 or 2, found {n_cameras}")
+        self.episode_steps = check_integer(
+            "episode_steps", episode_steps, minimum=1, error=ValueError
+        )
         self.camera_resolution = check_integer(
             "camera_resolution", camera_resolution, minimum=16, error=ValueError
         )
@@ -206,13 +233,6 @@ class DualGraspLiftV1Env(DualGraspLiftEnv):
         self._ended = ""
         self._previous_action = np.zeros(ACTION_SIZE)
         self._cloud: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # object frame
-
-    @property
-    def episode_steps(self) -> int:
-        """``T``: the episode's step limit (the spec's ``max_episode_steps``, else
-        :data:`EPISODE_STEPS`)."""
-        limit = getattr(self.spec, "max_episode_steps", None) if self.spec is not None else None
-        return int(limit) if limit else EPISODE_STEPS
 
     # ----------------------------------------------------------------------------------------
     # Gymnasium API
@@ -392,6 +412,11 @@ class DualGraspLiftV1Env(DualGraspLiftEnv):
             "cloud": None if self._cloud is None else tuple(a.copy() for a in self._cloud),
         }
 
+    @staticmethod
+    def get_state_keys() -> tuple[str, ...]:
+        """The keys of a :meth:`get_state` dictionary."""
+        return _STATE_KEYS
+
     def set_state(self, state: dict[str, Any]) -> Any:
         """Restore a :meth:`get_state` dictionary; returns the observation at that state.
 
@@ -403,6 +428,11 @@ class DualGraspLiftV1Env(DualGraspLiftEnv):
             raise ValueError(
                 f"state: expected a get_state() dictionary of version {STATE_VERSION}, found "
                 f"{found!r}"
+            )
+        missing = sorted(set(self.get_state_keys()) - set(state))
+        if missing:
+            raise ValueError(
+                f"state: expected the keys of a get_state() dictionary, found {missing} missing"
             )
         object_id = state.get("object_id")
         if object_id not in self.objects.ref.object_ids:

@@ -124,9 +124,10 @@ def dense_terms(
     ``MAX_STEP_REWARD * (steps_left + 1)`` in ``success`` and 0 in the other terms: at least what
     the step and every step left could earn without success. An unstable step pays nothing.
 
+    ``reach_distance``, ``jaw_angle``, ``hands_grasping``, ``both_grasping``, ``lift``,
+    ``lift_height``, ``holding``, ``success`` and ``unstable`` are as for :func:`reward_terms`.
+
     Args:
-        reach_distance, jaw_angle, hands_grasping, both_grasping, lift, lift_height, holding,
-            success, unstable: as for :func:`reward_terms`.
         steps_left: steps the episode could still run after this one (>= 0).
     """
     terms = dict.fromkeys((*DENSE_WEIGHTS, "success"), 0.0)

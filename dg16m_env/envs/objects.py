@@ -8,6 +8,9 @@ environment's generator (or takes ``options={"object_id": ...}``), and keeps the
 compiled trial scenes and observations (shared by every environment of the process on the same
 benchmark), so resetting onto an object again costs nothing. Cached values are shared: do not
 modify them.
+
+:func:`split_objects` is the train / held-out rule of every learning baseline and of the Lift
+demonstrations (:mod:`dg16m_env.envs.lift_demos`): every third object held out.
 """
 
 from __future__ import annotations
@@ -29,6 +32,18 @@ CACHE_SIZE = 512
 """Objects whose compiled scene / loaded object / observation are kept (least recently used
 out first): every object of the shipped benchmark (about 92 MB for its 300), so an environment
 loads and compiles each object once."""
+
+
+def split_objects(object_ids: Sequence[str]) -> tuple[list[str], list[str]]:
+    """``(train, held_out)``: every third object held out (``object_ids[::3]``, in benchmark
+    order, so each procedural family is on both sides), the rest for training, both in the
+    order given.
+
+    On the shipped procedural benchmark (300 objects): 200 training and 100 held-out objects.
+    """
+    held_out = list(object_ids[::3])
+    held = set(held_out)
+    return [i for i in object_ids if i not in held], held_out
 
 
 class BenchmarkObjects:
