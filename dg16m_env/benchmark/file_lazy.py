@@ -34,7 +34,7 @@ def on_grid(multiples: np.ndarray, grid: float) -> np.ndarray:
 def checked_dataset(
     f: h5py.File, path: Path, key: str, shape: tuple[int | None, ...], kinds: str
 ) -> h5py.Dataset:
-    """Like :func:`read_checked`, without reading the data."""
+    """Like ``read_checked``, without reading the data."""
     if key not in f:
         raise BenchmarkError(f"{path}: expected dataset {key!r}, found it missing")
     ds = f[key]
@@ -68,7 +68,7 @@ def read_checked(
 
 
 class LazyReader:
-    """What :func:`read_benchmark` (``lazy=True``) keeps of a file to read one object's parts and
+    """What :func:`~dg16m_env.benchmark.file.read_benchmark` (``lazy=True``) keeps of a file to read one object's parts and
     carried mesh later: the index of the stored hulls and meshes (counts, hashes, encodings),
     and the file's size and modification time (a changed file is refused). Picklable.
 
@@ -165,7 +165,7 @@ class LazyReader:
     def read(
         self, i: int, object_id: str
     ) -> tuple[tuple[ConvexPart, ...], tuple[np.ndarray, np.ndarray, str] | None]:
-        """Object ``i``'s parts and carried mesh (``None``), as :func:`read_benchmark` reads them
+        """Object ``i``'s parts and carried mesh (``None``), as :func:`~dg16m_env.benchmark.file.read_benchmark` reads them
         eagerly (same checks, same values).
 
         Raises:

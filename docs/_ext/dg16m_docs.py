@@ -69,6 +69,12 @@ PICTURES = {
         "ScriptedLiftPolicy`) with a benchmark target grasp on ``tub-1000013``, seed 0: the "
         "hands reach, close, lift the tub 10 cm and hold it for 1 s.",
     ),
+    "DualGraspLift-v1": (
+        "lift_episode.gif",
+        "The task v1 keeps from v0 (the same physics, actions and success rule): the v0 "
+        "episode of the scripted policy on ``tub-1000013``, seed 0, which reaches, closes, "
+        "lifts the tub 10 cm and holds it for 1 s.",
+    ),
 }
 
 #: Display widths of pictures shown smaller than the content column (their own size).
