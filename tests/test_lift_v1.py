@@ -167,6 +167,7 @@ def test_a_restored_state_gives_the_same_steps() -> None:
     for _ in range(20):
         obs, *_ = env.step(rng.uniform(-1, 1, 14).astype(np.float32))
     state = inner.get_state()
+    assert tuple(state) == inner.get_state_keys()  # the keys set_state checks are the ones written
     actions = []
     first = []
     for _ in range(30):
