@@ -153,8 +153,8 @@ def select_objects(object_ids: Sequence[str], objects: str | Sequence[str] = "tr
         if objects == "all":
             return list(object_ids)
         objects = [part.strip() for part in objects.split(",") if part.strip()]
-    chosen = [str(i) for i in objects]
-    unknown = [i for i in chosen if i not in set(object_ids)]
+    chosen, known = [str(i) for i in objects], set(object_ids)
+    unknown = [i for i in chosen if i not in known]
     if unknown or not chosen:
         raise LiftDemosError(
             f"objects: expected one of {OBJECT_SETS} or ids of the benchmark's "
@@ -466,7 +466,12 @@ def collect_lift_demos(
     ref = load_benchmark_ref(bench, (env_kwargs or {}).get("mesh_root"), lazy=True)
     object_ids = select_objects(ref.object_ids, objects)
     config = _env_config(bench, object_ids, obs_mode, env_kwargs)
-    env = _make_env(config)  # checks the kwargs before any worker starts; gives the spaces
+    try:  # checks the kwargs before any worker starts; gives the spaces
+        env = _make_env(config)
+    except Dg16mError:
+        raise
+    except (TypeError, ValueError) as exc:  # the env's own checks of its kwargs
+        raise LiftDemosError(f"{ENV_ID}: {exc}") from None
     expert = type(_make_expert(config)).__name__
     start = time.perf_counter()
     target.parent.mkdir(parents=True, exist_ok=True)
