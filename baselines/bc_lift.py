@@ -125,15 +125,19 @@ def load_demonstrations(source: str) -> tuple[np.ndarray, np.ndarray, int, int]:
     return np.concatenate(states), np.concatenate(actions), episodes, successes
 
 
-def train(states: np.ndarray, actions: np.ndarray, args: Args) -> tuple[LiftBCPolicy, float]:
-    """Fit a fresh network to the expert's actions at ``states``; the policy and the last
-    epoch's mean loss."""
+def training_pairs(states: np.ndarray, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 117) states and (N, 14) expert actions -> (2N, FEATURES) per-hand features and (2N, 7)
+    per-hand actions in the goal frames: what the network fits (computed once per state)."""
+    features, to_goal = hand_features(states)
+    return features.reshape(-1, FEATURES), goal_frame_actions(actions, to_goal).reshape(-1, 7)
+
+
+def train(x: np.ndarray, y: np.ndarray, args: Args) -> tuple[LiftBCPolicy, float]:
+    """Fit a fresh network to the per-hand pairs of :func:`training_pairs`; the policy and the
+    last epoch's mean loss."""
     import torch
 
     torch.manual_seed(args.seed)
-    features, to_goal = hand_features(states)
-    x = features.reshape(-1, FEATURES)
-    y = goal_frame_actions(actions, to_goal).reshape(-1, 7)
     mean, std = x.mean(axis=0), x.std(axis=0) + 1e-3
     xt = torch.from_numpy((x - mean) / std)
     yt = torch.from_numpy(y)
@@ -250,7 +254,8 @@ def main() -> None:
     started = time.perf_counter()
     states, actions, n_episodes, n_successes = load_demonstrations(args.demos)
     print(f"{args.demos}: {n_successes} of {n_episodes} episodes succeeded: {len(states)} steps")
-    policy, loss = train(states, actions, args)
+    x, y = training_pairs(states, actions)
+    policy, loss = train(x, y, args)
     rounds = [{"round": 0, "steps": len(states), "loss": loss, "rollout_success": None}]
     print(f"behaviour cloning: loss {loss:.4f}")
 
@@ -263,13 +268,14 @@ def main() -> None:
         new_states, new_actions, rate = dagger_rollouts(
             env, policy, expert, seeds, beta, phases, rng
         )
-        states = np.concatenate([states, new_states])
-        actions = np.concatenate([actions, new_actions])
-        policy, loss = train(states, actions, args)
-        rounds.append({"round": i + 1, "steps": len(states), "loss": loss, "rollout_success": rate})
+        new_x, new_y = training_pairs(new_states, new_actions)
+        x, y = np.concatenate([x, new_x]), np.concatenate([y, new_y])
+        policy, loss = train(x, y, args)
+        steps = len(x) // 2
+        rounds.append({"round": i + 1, "steps": steps, "loss": loss, "rollout_success": rate})
         print(
             f"DAgger round {i + 1}: rollouts {rate:.0%} successful (beta {beta:.2f}), "
-            f"{len(states)} steps, loss {loss:.4f}"
+            f"{steps} steps, loss {loss:.4f}"
         )
     env.close()
     train_s = time.perf_counter() - started

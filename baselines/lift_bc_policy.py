@@ -31,15 +31,13 @@ from __future__ import annotations
 
 import itertools
 import os
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from dataset_gen.atomic import atomic_path
-from dataset_gen.gripper import PANDA
-from dg16m_env.envs.lift_observations import STATE_SIZE, STATE_SLICES, nearest_jaw_targets
+from dg16m_env.envs.lift_observations import STATE_SIZE, STATE_SLICES, goal_frames, state_vector
 from dg16m_env.envs.lift_spaces import MAX_ROTATION, MAX_TRANSLATION, rotation_vector
 from dg16m_env.envs.spaces import rotation_from_6d
 
@@ -74,18 +72,6 @@ def check_states(states: Any) -> np.ndarray:
     return s
 
 
-def goal_frames(states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each hand's goal: ``(N, 2, 3, 3)`` rotations (the target rotation or its jaw flip,
-    whichever is nearer the commanded rotation) and ``(N, 2, 3)`` grasp centres (m, world)."""
-    n = len(states)
-    command = states[:, STATE_SLICES["commanded_poses"]].reshape(n, 2, 9)
-    rotations = rotation_from_6d(command[:, :, 3:])[0]
-    target = states[:, STATE_SLICES["target_poses"]].reshape(n, 2, 9)
-    goal_rot = nearest_jaw_targets(rotations, rotation_from_6d(target[:, :, 3:])[0])
-    centres = target[:, :, :3] + PANDA.contact_depth * goal_rot[:, :, :, 1]
-    return goal_rot, centres
-
-
 def _in_frame(to_goal: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     """(N, 2, 3) world vectors -> the goal frames (``to_goal`` (N, 2, 3, 3) = R^T)."""
     return np.einsum("nkij,nkj->nki", to_goal, vectors)
@@ -96,11 +82,8 @@ def hand_features(states: Any) -> tuple[np.ndarray, np.ndarray]:
     3)`` world-to-goal rotations (for :func:`goal_frame_actions` / :func:`world_actions`)."""
     s = check_states(states)
     n = len(s)
-    goal_rot, goals = goal_frames(s)
+    goal_rot, goals, centres, rotations = goal_frames(s)
     to_goal = np.swapaxes(goal_rot, -1, -2)
-    command = s[:, STATE_SLICES["commanded_poses"]].reshape(n, 2, 9)
-    centres = command[:, :, :3]
-    rotations = rotation_from_6d(command[:, :, 3:])[0]
     own_error = _in_frame(to_goal, centres - goals)
     actual_error = _in_frame(to_goal, s[:, STATE_SLICES["centre_errors"]].reshape(n, 2, 3))
     turn = _in_frame(to_goal, rotation_vector(goal_rot @ np.swapaxes(rotations, -1, -2)))
@@ -238,12 +221,7 @@ class LiftBCPolicy:
         return world_actions(self.outputs(features), to_goal)
 
     def __call__(self, obs: Any) -> np.ndarray:
-        if isinstance(obs, Mapping):
-            if "state" in obs:
-                obs = obs["state"]
-            else:  # state_dict: the parts in the layout's order
-                obs = np.concatenate([np.ravel(obs[name]) for name in STATE_SLICES])
-        return self.act(obs)[0]
+        return self.act(state_vector(obs, "LiftBCPolicy"))[0]
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the weights and normalisation to ``path`` (torch file), atomically."""

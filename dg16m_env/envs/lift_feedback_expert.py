@@ -13,26 +13,16 @@ uniform random actions, 89/120 = 0.74 (0.66-0.81).
 from __future__ import annotations
 
 import itertools
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from dataset_gen.gripper import PANDA
 from dg16m_env.envs.dual_grasp_lift import HAND_REACH, TABLE_MARGIN
-from dg16m_env.envs.lift_observations import (
-    STATE_LAYOUT,
-    STATE_SIZE,
-    STATE_SLICES,
-    nearest_jaw_targets,
-)
+from dg16m_env.envs.lift_observations import STATE_SLICES, goal_frames, state_vector
 from dg16m_env.envs.lift_spaces import ACTION_SIZE, MAX_ROTATION, MAX_TRANSLATION, rotation_vector
 from dg16m_env.envs.spaces import rotation_from_6d
 from dg16m_env.physics.lift_scene import hand_points
-
-
-def _rotations(six: np.ndarray) -> np.ndarray:
-    return rotation_from_6d(six.reshape(2, 6))[0]
 
 
 def _motion(
@@ -186,26 +176,9 @@ class FeedbackLiftExpert:
     @staticmethod
     def state_vector(obs: Any) -> np.ndarray:
         """The flat ``"state"`` vector (float64, (117,)) of a state, state_dict or pointcloud
-        observation; ``ValueError`` for anything else or an observation without a target."""
-        if isinstance(obs, Mapping):
-            if "state" in obs:
-                obs = obs["state"]
-            else:
-                missing = [name for name, _, _, _ in STATE_LAYOUT if name not in obs]
-                if missing:
-                    raise ValueError(
-                        "FeedbackLiftExpert: expected a DualGraspLift-v1 observation ('state' "
-                        f"vector or dictionary), found a dictionary without {missing[:3]}"
-                    )
-                obs = np.concatenate(
-                    [np.asarray(obs[name]).ravel() for name, _, _, _ in STATE_LAYOUT]
-                )
-        state = np.asarray(obs, dtype=np.float64)
-        if state.shape != (STATE_SIZE,):
-            raise ValueError(
-                f"FeedbackLiftExpert: expected a DualGraspLift-v1 state of shape ({STATE_SIZE},), "
-                f"found shape {state.shape}"
-            )
+        observation (:func:`~dg16m_env.envs.lift_observations.state_vector`); ``ValueError`` for
+        anything else or an observation without a target."""
+        state = state_vector(obs, "FeedbackLiftExpert")
         flag = float(state[STATE_SLICES["target_flag"]][0])
         if flag < 0.5:
             raise ValueError(
@@ -245,11 +218,7 @@ class FeedbackLiftExpert:
             action[[6, 13]] = 1.0
             return "lift", np.clip(action, -1.0, 1.0).astype(np.float32)
 
-        command = part["commanded_poses"].reshape(2, 9)
-        centres, rotations = command[:, :3], _rotations(command[:, 3:])
-        target = part["target_poses"].reshape(2, 9)
-        target_rot = nearest_jaw_targets(rotations, _rotations(target[:, 3:]))
-        goals = target[:, :3] + self.depth * target_rot[:, :, 1]
+        target_rot, goals, centres, rotations = (frame[0] for frame in goal_frames(s[None]))
         errors = np.linalg.norm(centres - goals, axis=1)
         actual = np.linalg.norm(part["centre_errors"].reshape(2, 3), axis=1)
         errors = np.maximum(errors, actual)

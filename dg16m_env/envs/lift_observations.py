@@ -1,17 +1,23 @@
 """The observation modes of ``dg16m_env/DualGraspLift-v1``: the state vector's named parts
 (:data:`STATE_LAYOUT`, :data:`STATE_SLICES`), the spaces of each ``obs_mode``
 (:func:`observation_space`) and the relative features a policy needs
-(:func:`rotation_errors`). The env computes the values
+(:func:`rotation_errors`, :func:`goal_frames`), and :func:`state_vector`, the flat state of
+any observation mode. The env computes the values
 (:meth:`dg16m_env.envs.dual_grasp_lift_v1.DualGraspLiftV1Env.state_parts`); this module only
 says their names, sizes and bounds.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 from gymnasium import spaces
 
+from dataset_gen.gripper import PANDA
 from dg16m_env.envs.lift_spaces import ACTION_SIZE, POSITION_BOUND, VELOCITY_BOUND, rotation_vector
+from dg16m_env.envs.spaces import rotation_from_6d
 
 OBS_MODES = ("state", "state_dict", "pointcloud")
 """The ``obs_mode`` values of ``dg16m_env/DualGraspLift-v1``."""
@@ -116,3 +122,46 @@ def rotation_errors(rotations: np.ndarray, targets: np.ndarray) -> np.ndarray:
     scaling, that would align the hand in one step."""
     goal = nearest_jaw_targets(rotations, targets)
     return rotation_vector(goal @ np.swapaxes(rotations, -1, -2))
+
+
+def state_vector(obs: Any, who: str = "DualGraspLift-v1 policy") -> np.ndarray:
+    """The flat ``"state"`` vector (float64, (:data:`STATE_SIZE`,)) of a state, state_dict or
+    pointcloud observation: the ``"state"`` entry of a dictionary, or the named parts of a
+    state_dict in :data:`STATE_LAYOUT`'s order. ``ValueError`` naming ``who`` for anything
+    else."""
+    if isinstance(obs, Mapping):
+        if "state" in obs:
+            obs = obs["state"]
+        else:
+            missing = [name for name, _, _, _ in STATE_LAYOUT if name not in obs]
+            if missing:
+                raise ValueError(
+                    f"{who}: expected a DualGraspLift-v1 observation ('state' vector or "
+                    f"dictionary), found a dictionary without {missing[:3]}"
+                )
+            obs = np.concatenate([np.asarray(obs[name]).ravel() for name, _, _, _ in STATE_LAYOUT])
+    state = np.asarray(obs, dtype=np.float64)
+    if state.shape != (STATE_SIZE,):
+        raise ValueError(
+            f"{who}: expected a DualGraspLift-v1 state of shape ({STATE_SIZE},), found shape "
+            f"{state.shape}"
+        )
+    return state
+
+
+def goal_frames(states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each hand's goal from ``(N, STATE_SIZE)`` states.
+
+    Returns ``goal_rotations`` (N, 2, 3, 3): the target rotation or its jaw flip, whichever is
+    nearer the commanded rotation (:func:`nearest_jaw_targets`); ``goal_centres`` (N, 2, 3): the
+    target's grasp centre (m, world), ``contact_depth`` along its approach axis from the target
+    flange; and the commanded ``centres`` (N, 2, 3) and ``rotations`` (N, 2, 3, 3) they were
+    measured against.
+    """
+    n = len(states)
+    command = states[:, STATE_SLICES["commanded_poses"]].reshape(n, 2, 9)
+    rotations = rotation_from_6d(command[:, :, 3:])[0]
+    target = states[:, STATE_SLICES["target_poses"]].reshape(n, 2, 9)
+    goal_rotations = nearest_jaw_targets(rotations, rotation_from_6d(target[:, :, 3:])[0])
+    goal_centres = target[:, :, :3] + PANDA.contact_depth * goal_rotations[:, :, :, 1]
+    return goal_rotations, goal_centres, command[:, :, :3], rotations
