@@ -24,12 +24,15 @@ from pathlib import Path
 from typing import Any
 
 from dataset_gen.errors import Dg16mError
+from dataset_gen.stopping import die_with_parent
 
 StageCallback = Callable[[str], None]
 
-WALL_FACTOR = 4.0
+WALL_FACTOR = 1.5
 """A stage is also stopped after this many times its budget of wall time (a child that waits
-or hangs spends no CPU)."""
+or hangs spends no CPU; on a loaded machine a stage gets at most this much more wall time than
+its CPU budget). Was 4 until 2026-12-05: a loaded machine then let one object run past half an
+hour."""
 
 
 class StageTimeoutError(Dg16mError, RuntimeError):
@@ -40,19 +43,29 @@ class StageTimeoutError(Dg16mError, RuntimeError):
         budget: its budget (s).
         stage_times: wall seconds spent in each stage entered, in order (the name every error
             from :func:`run_with_budget` carries them under).
+        whole: the object's total wall bound ran out (``budget`` is that bound), not the
+            stage's own budget.
     """
 
-    def __init__(self, stage: str, budget: float, stage_times: Mapping[str, float]) -> None:
+    def __init__(
+        self,
+        stage: str,
+        budget: float,
+        stage_times: Mapping[str, float],
+        whole: bool = False,
+    ) -> None:
+        what = "the object's" if whole else "its"
         super().__init__(
-            f"expected stage {stage!r} to finish within its budget of {budget:g} s, found it "
+            f"expected stage {stage!r} to finish within {what} budget of {budget:g} s, found it "
             "still running (stopped)"
         )
         self.stage = stage
         self.budget = budget
         self.stage_times = dict(stage_times)
+        self.whole = whole
 
     def __reduce__(self) -> tuple[Any, ...]:
-        return (type(self), (self.stage, self.budget, self.stage_times))
+        return (type(self), (self.stage, self.budget, self.stage_times, self.whole))
 
 
 @dataclass
@@ -67,7 +80,9 @@ class _ParentGoneError(Exception):
     """The parent closed its end (it was stopped): the child has no one to answer."""
 
 
-def _child(conn: Any, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
+def _child(conn: Any, fn: Callable[..., Any], args: tuple[Any, ...], parent_pid: int) -> None:
+    die_with_parent(parent_pid)
+
     def send(message: tuple[str, Any]) -> None:
         try:
             conn.send(message)
@@ -105,7 +120,9 @@ def run_with_budget(
     args: tuple[Any, ...],
     budgets: Mapping[str, float],
     *,
+    total_wall_s: float | None = None,
     poll_s: float = 0.5,
+    on_stage: Callable[[str], None] | None = None,
 ) -> BudgetedResult:
     """``fn(*args, on_stage=callback)`` in a spawned child, each stage within ``budgets[stage]``
     seconds of the child's CPU time (stages without a budget are unlimited; the time before the
@@ -114,13 +131,22 @@ def run_with_budget(
     :data:`WALL_FACTOR` times the budget in wall time, whatever the CPU. The budget is checked
     every ``poll_s`` and again when the stage ends, so a stage that finishes past its budget
     between two polls is stopped all the same (the verdict does not depend on ``poll_s`` or on
-    how fast the machine is). The seconds reported per stage are wall seconds.
+    how fast the machine is). The seconds reported per stage are wall seconds. ``total_wall_s``
+    bounds the whole run's wall time (all stages together; the stage running then is the one
+    stopped, with ``budget`` the total).
+
+    Stopping: the child dies with its parent (:func:`die_with_parent`), and a ``KeyboardInterrupt``
+    (Ctrl-C, or SIGTERM made one by
+    :func:`~dataset_gen.stopping.sigterm_interrupts`) in the parent kills it at once;
+    the parent checks for one at least every ``poll_s``.
 
     Args:
         fn: a module-level function (it is pickled to the child) taking ``on_stage``.
         args: its positional arguments (picklable).
         budgets: seconds per stage name.
+        total_wall_s: wall seconds for all stages together (None: no such bound).
         poll_s: how often the parent checks the child (s).
+        on_stage: called in the parent with each stage's name as the child enters it.
 
     Raises:
         StageTimeoutError: a stage ran past its budget (the child is killed).
@@ -131,12 +157,17 @@ def run_with_budget(
     for name, seconds in budgets.items():
         if not (isinstance(seconds, (int, float)) and seconds > 0):
             raise ValueError(f"budgets[{name!r}]: expected seconds > 0, found {seconds!r}")
+    if total_wall_s is not None and not (
+        isinstance(total_wall_s, (int, float)) and total_wall_s > 0
+    ):
+        raise ValueError(f"total_wall_s: expected seconds > 0, found {total_wall_s!r}")
     context = multiprocessing.get_context("spawn")
     receiver, sender = context.Pipe(duplex=False)
-    process = context.Process(target=_child, args=(sender, fn, args), daemon=True)
+    process = context.Process(target=_child, args=(sender, fn, args, os.getpid()), daemon=True)
     process.start()
     sender.close()
     stage, started = "start", time.monotonic()
+    began = started
     times: dict[str, float] = {}
 
     def spent() -> float:  # the child's CPU seconds in this stage (wall seconds without /proc)
@@ -145,6 +176,9 @@ def run_with_budget(
 
     def over_budget(budget: float, now: float) -> bool:  # CPU past it, or WALL_FACTOR x wall
         return spent() > budget or now - started >= WALL_FACTOR * budget
+
+    def over_total(now: float) -> bool:
+        return total_wall_s is not None and now - began >= total_wall_s
 
     cpu_start = _cpu_seconds(process.pid) if process.pid is not None else None
     try:
@@ -169,6 +203,8 @@ def run_with_budget(
                     times[stage] = times.get(stage, 0.0) + now - started
                     stage, started = value, now
                     cpu_start = _cpu_seconds(process.pid) if process.pid is not None else None
+                    if on_stage is not None:
+                        on_stage(stage)
                     continue
                 times[stage] = times.get(stage, 0.0) + now - started
                 process.join()
@@ -178,9 +214,13 @@ def run_with_budget(
                     value.stage_times = dict(times)  # where the time went, for the caller
                     raise value
                 raise RuntimeError(f"the worker process failed in stage {stage!r}:\n{value}")
-            if budget is not None and over_budget(budget, time.monotonic()):
-                times[stage] = time.monotonic() - started
+            now = time.monotonic()
+            if budget is not None and over_budget(budget, now):
+                times[stage] = times.get(stage, 0.0) + now - started
                 raise StageTimeoutError(stage, budget, times)
+            if total_wall_s is not None and over_total(now):
+                times[stage] = times.get(stage, 0.0) + now - started
+                raise StageTimeoutError(stage, total_wall_s, times, whole=True)
             if not process.is_alive() and not receiver.poll():
                 raise RuntimeError(
                     f"expected an answer from the worker process, found it ended with exit code "

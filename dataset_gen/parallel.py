@@ -12,6 +12,7 @@ remembered and raised after the task it interrupted (:func:`run_resumable`).
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -22,6 +23,7 @@ from typing import Any, Literal, Protocol, TypeVar
 
 from .errors import Dg16mError
 from .io import new_manifest, read_manifest, write_manifest
+from .stopping import die_with_parent
 
 Backend = Literal["local", "ray"]
 BACKENDS: tuple[str, ...] = ("local", "ray")
@@ -89,7 +91,10 @@ def run_tasks(
 def _pool(
     task: Callable[..., Result], items: Sequence[Item], args: tuple[Any, ...], workers: int
 ) -> Iterator[tuple[Item, Result]]:
-    pool = ProcessPoolExecutor(max_workers=workers)
+    # workers die with this process and leave Ctrl-C to it (it stops them)
+    pool = ProcessPoolExecutor(
+        max_workers=workers, initializer=die_with_parent, initargs=(os.getpid(),)
+    )
     try:
         pending: dict[Future[Result], Item] = {}
         queue = list(items)

@@ -73,8 +73,8 @@ def mesh_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def mesh_build(mesh_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """``dg16m benchmark build --meshes DIR`` (no grasp files): the default pair counts, the
-    nominal trial only."""
+    """``dg16m benchmark build --meshes DIR`` (no grasp files): the real-object settings (the
+    default for meshes: the paper's arms and 20 fc_robust pairs), the nominal trial only."""
     out = tmp_path_factory.mktemp("mesh_bench")
     args = ["benchmark", "build", "--meshes", str(mesh_dir), "--out", str(out)]
     assert cli_main([*args, "--perturbations", "0", "--no-progress"]) == 0
@@ -103,7 +103,7 @@ def test_cli_builds_a_benchmark_from_a_mesh_folder(
     assert [o.object_id for o in bench.objects] == ["dining_table"]
     assert (obj.family, obj.seed, obj.file, obj.scale) == ("", -1, "dining_table.obj", 1.0)
     assert obj.parts, "the mesh is simulated through its convex parts"
-    assert set(bench.source.tolist()) == {SOURCES.index(arm) for arm in ARMS}
+    assert set(bench.source.tolist()) == {SOURCES.index(arm) for arm in (*ARMS, "fc_robust")}
     assert bench.labels.spec.trials == 1
     # The diagnostics are stored: the centre of mass, and each pair's hand-line distance
     # recomputed from its poses with the simulator's grasp centres.

@@ -304,9 +304,16 @@ def failed_entries(manifest: Mapping[str, Any], ids: Sequence[str] | None = None
     benchmark build`` print come from :func:`failure_lines`."""
     entries = manifest["entries"]
     wanted = list(entries) if ids is None else [i for i in ids if i in entries]
-    return {
-        i: str(entries[i].get("error", "?")) for i in wanted if entries[i]["status"] == "failed"
-    }
+    return {i: _reason(entries[i]) for i in wanted if entries[i]["status"] == "failed"}
+
+
+def _reason(entry: Mapping[str, Any]) -> str:
+    """A failed entry's reason: its ``verdict`` in words and stage where it has them (a
+    rejected benchmark object), then the error itself."""
+    error = str(entry.get("error", "?"))
+    if not entry.get("verdict"):
+        return error
+    return f"rejected at stage {entry.get('stage', '?')}: {entry['verdict']} ({error})"
 
 
 def failure_lines(failed: Mapping[str, str]) -> list[str]:

@@ -212,12 +212,14 @@ class ObjectRejectedError(BenchmarkError):
     :func:`~dg16m_env.benchmark.build.benchmark_object`'s ``min_passing``); ``stage`` says where
     it was found out."""
 
-    def __init__(self, stage: str, message: str) -> None:
+    def __init__(self, stage: str, message: str, verdict: str = "") -> None:
         super().__init__(message)
         self.stage = stage
+        self.verdict = verdict
+        """What the rejection means for the object, in words a user understands."""
 
     def __reduce__(self) -> tuple[Any, ...]:
-        return (type(self), (self.stage, str(self)))
+        return (type(self), (self.stage, str(self), self.verdict))
 
 
 def screen_passing(obj: GraspObject, params: BenchmarkParameters) -> int:
@@ -226,10 +228,35 @@ def screen_passing(obj: GraspObject, params: BenchmarkParameters) -> int:
     open-hand clearance rule, which needs the parts), paired and checked as
     :func:`sampled_pairs` does, from a stream of its own (the benchmark's draws do not change).
     An upper estimate of what the build will find: the clearance rule only removes grasps."""
+    return screen_counts(obj, params)[1]
+
+
+def screen_counts(obj: GraspObject, params: BenchmarkParameters) -> tuple[int, int]:
+    """``(grasps, passing)``: the single-arm grasps :func:`screen_passing` found on the mesh
+    (the hand fits around the object there) and its count of force-closure-passing pairs."""
     rng = np.random.default_rng(object_seed(params.seed, f"benchmark-screen:{obj.object_id}"))
     grasps = sample_antipodal_grasps(obj, n_grasps=params.n_grasps, mu=params.mu, rng=rng)
     candidates = candidate_pairs(grasps, min_center_distance=params.min_center_distance)
     if len(candidates.pairs) == 0:
-        return 0
+        return len(grasps.poses), 0
     verdict = score_pairs(grasps, candidates.pairs, **params.force_closure_kwargs())
-    return int(np.sum(verdict.passed))
+    return len(grasps.poses), int(np.sum(verdict.passed))
+
+
+def screen_verdict(grasps: int, passing: int, min_passing: int, opening_m: float) -> str:
+    """Why an object that gave ``passing`` < ``min_passing`` pairs at the screen is rejected, in
+    words: the hand (``opening_m`` wide) fits around no part of it, or too few of its grasps
+    pair into force closure."""
+    cm = f"{100 * opening_m:.0f} cm"
+    if grasps == 0:
+        return (
+            f"the gripper ({cm} opening) fits around no part of this object: none of the sampled "
+            "grasps closes on two opposite faces without the open hand touching the object "
+            "(parts thicker than the opening, bulky or upholstered shapes, or walls the hand "
+            "cannot reach around; check the units too)"
+        )
+    return (
+        f"the gripper ({cm} opening) fits around this object in {grasps} sampled places, but "
+        f"only {passing} pairs of those grasps hold it in force closure ({min_passing} needed): "
+        "too few graspable parts (thin rims, legs, handles, edges)"
+    )

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from dataset_gen.budget import StageTimeoutError, run_with_budget
+from dataset_gen.budget import WALL_FACTOR, StageTimeoutError, run_with_budget
 from dataset_gen.checks import check_integer, check_number
 from dataset_gen.decomposition import (
     MIN_RELATIVE_HULL_VOLUME,
@@ -25,6 +25,7 @@ from dataset_gen.decomposition import (
     object_parts,
 )
 from dataset_gen.errors import Dg16mError
+from dataset_gen.gripper import PANDA
 from dataset_gen.io import (
     failed_entries,
     package_version,
@@ -42,7 +43,8 @@ from dg16m_env.benchmark.arms import (
     _file_pairs,
     _object_metadata,
     sampled_pairs,
-    screen_passing,
+    screen_counts,
+    screen_verdict,
 )
 from dg16m_env.benchmark.file import grid_multiples, on_grid, read_benchmark, write_benchmark
 from dg16m_env.benchmark.model import (
@@ -118,7 +120,8 @@ def benchmark_object(
 
     Args:
         min_passing: for sampled objects, the fewest ``fc_pass`` pairs the object must give
-            (0 = any): checked before the convex decomposition (:func:`screen_passing`) and
+            (0 = any): checked before the convex decomposition
+            (:func:`~dg16m_env.benchmark.arms.screen_passing`) and
             after sampling, before any trial; :class:`ObjectRejectedError` says which.
         on_stage: called with ``"load"``, ``"screen"`` (only with ``min_passing``),
             ``"decompose"``, ``"sample"`` and ``"label"`` as the work enters each (for time
@@ -136,12 +139,13 @@ def benchmark_object(
     obj = source.load(params.mass)
     if min_passing and data is None:
         stage("screen")
-        found = screen_passing(obj, params)
+        grasps, found = screen_counts(obj, params)
         if found < min_passing:
             raise ObjectRejectedError(
                 "screen",
                 f"{obj.object_id}: expected at least {min_passing} force-closure-passing "
                 f"candidate pairs, found {found} before the clearance rule (screening)",
+                screen_verdict(grasps, found, min_passing, PANDA.max_opening),
             )
     stage("decompose")
     parts = object_parts(obj, **params.decomposition_kwargs())
@@ -161,6 +165,8 @@ def benchmark_object(
                 "sample",
                 f"{obj.object_id}: expected at least {min_passing} fc_pass pairs, found {found} "
                 "with the open-hand clearance rule",
+                f"only {found} force-closure pairs leave both open hands clear of the object "
+                f"({min_passing} needed): the fingers would start inside it almost everywhere",
             )
     stage("label")
     scene = compile_scene(obj, params=params.scene, parts=parts)
@@ -244,6 +250,8 @@ class BuildLimits:
         decompose_s: CPU seconds for the convex decomposition (None = no limit).
         sample_s: CPU seconds for sampling, pairing and force closure (and the screening).
         label_s: CPU seconds for the trials.
+        object_wall_s: wall seconds for the whole object, all stages together (None = no such
+            bound): what a loaded machine cannot stretch.
 
     Budgets are the child process's CPU seconds (:func:`dataset_gen.budget.run_with_budget`),
     not wall time, so that a loaded machine does not reject what a quiet one admits (and 4x the
@@ -251,20 +259,34 @@ class BuildLimits:
 
     An object past a budget is stopped (its child process is killed) and recorded as failed
     with ``rejected: "time budget"`` and the stage; one with too few pairs with ``rejected:
-    "too few passing pairs"``. With any budget each object runs in a child process
-    (:func:`dataset_gen.budget.run_with_budget`; about 2 s to start).
+    "too few passing pairs"``; each with a ``verdict`` in words. With any budget, and for every
+    mesh object, the object runs in a child process (:func:`dataset_gen.budget.run_with_budget`;
+    about 2 s to start) that Ctrl-C and SIGTERM stop at once.
+
+    The bound on one object's wall time: ``object_wall_s`` where set, else the sum over its
+    stages of :data:`~dataset_gen.budget.WALL_FACTOR` times each budget (``screen`` takes
+    ``sample_s``).
     """
 
     min_passing: int = 0
     decompose_s: float | None = None
     sample_s: float | None = None
     label_s: float | None = None
+    object_wall_s: float | None = None
 
     def __post_init__(self) -> None:
         check_integer("min_passing", self.min_passing, error=BenchmarkError)
-        for name in ("decompose_s", "sample_s", "label_s"):
+        for name in ("decompose_s", "sample_s", "label_s", "object_wall_s"):
             if getattr(self, name) is not None:
                 check_number(name, getattr(self, name), error=BenchmarkError)
+
+    def wall_bound_s(self) -> float | None:
+        """The most wall seconds one object can take before its verdict (child start aside):
+        ``object_wall_s``, or the stages' wall caps summed; None without any bound."""
+        if self.object_wall_s is not None:
+            return float(self.object_wall_s)
+        stages = self.budgets()
+        return WALL_FACTOR * sum(stages.values()) if stages else None
 
     def budgets(self) -> dict[str, float]:
         """Seconds per stage of :func:`benchmark_object` that has a budget."""
@@ -277,7 +299,12 @@ class BuildLimits:
         return {k: float(v) for k, v in stages.items() if v is not None}
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """For the manifest's parameters (``object_wall_s`` only where set: the manifests of
+        builds made before it existed still match)."""
+        values = asdict(self)
+        if values["object_wall_s"] is None:
+            del values["object_wall_s"]
+        return values
 
 
 def _budgeted_object(
@@ -289,6 +316,40 @@ def _budgeted_object(
     on_stage: Callable[[str], None],
 ) -> Benchmark:
     return benchmark_object(item, params, simulator, min_passing=min_passing, on_stage=on_stage)
+
+
+STAGE_WORDS = {
+    "start": "starting the worker process",
+    "load": "loading the mesh",
+    "screen": "the screening (grasps sampled on the mesh and paired)",
+    "decompose": "its convex decomposition (CoACD)",
+    "sample": "sampling grasps and pairing them",
+    "label": "its MuJoCo trials",
+}
+"""Each stage of :func:`benchmark_object` in words, for verdicts."""
+
+STAGE_ADVICE = {
+    "decompose": "the mesh is too detailed or thin-walled for the decomposition; simplify it "
+    "(fewer faces, thicker walls) or raise the budget",
+    "label": "an object of very many convex parts makes every trial slow; a coarser mesh helps",
+    "screen": "a mesh of very many faces makes sampling slow; simplify it",
+    "sample": "a mesh of very many faces or convex parts makes sampling slow; simplify it",
+}
+
+
+def timeout_verdict(exc: StageTimeoutError) -> str:
+    """A stopped stage in words (the stage, its budget, what to do)."""
+    what = STAGE_WORDS.get(exc.stage, f"stage {exc.stage!r}")
+    if exc.whole:
+        return (
+            f"the object did not end within its bound of {exc.budget:g} s of wall time (stopped "
+            f"in {what}): a loaded machine or a slow object; retry on a quieter machine or "
+            "raise the bound"
+        )
+    advice = STAGE_ADVICE.get(exc.stage, "")
+    return f"{what} did not end within its budget of {exc.budget:g} CPU s" + (
+        f": {advice}" if advice else ""
+    )
 
 
 def _seconds(times: Mapping[str, float]) -> dict[str, float]:
@@ -305,10 +366,16 @@ def _object_task(
     relative = f"{OBJECTS_FOLDER}/{item.object_id}.h5"
     times: dict[str, float] = {}
     min_passing = limits.min_passing if limits is not None else 0
+    budgets = limits.budgets() if limits is not None else {}
+    wall = limits.object_wall_s if limits is not None else None
     try:
-        if limits is not None and limits.budgets():
+        if budgets or wall is not None or item.source.mesh is not None:
+            # a child process: budgets, and CoACD stopped by Ctrl-C / SIGTERM within a second
             done = run_with_budget(
-                _budgeted_object, (item, params, simulator, min_passing), limits.budgets()
+                _budgeted_object,
+                (item, params, simulator, min_passing),
+                budgets,
+                total_wall_s=wall,
             )
             bench, times = done.value, done.times
         else:
@@ -321,7 +388,10 @@ def _object_task(
             "error": f"{item.object_id}: {exc}" if timeout else str(exc),
             "rejected": "time budget" if timeout else "too few passing pairs",
             "stage": exc.stage,
+            "verdict": timeout_verdict(exc) if isinstance(exc, StageTimeoutError) else exc.verdict,
         }
+        if not entry["verdict"]:
+            del entry["verdict"]
         if getattr(exc, "stage_times", None):  # set by run_with_budget
             entry["stage_seconds"] = _seconds(exc.stage_times)
         return entry

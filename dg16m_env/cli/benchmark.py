@@ -27,10 +27,14 @@ BUILD_EXAMPLES = (
     "  dg16m benchmark build --out runs/benchmark --workers 2\n"
     "  # a quick look: the first 10 objects\n"
     "  dg16m benchmark build --out runs/bench10 --limit 10\n"
-    "  # your own meshes (in metres; --scale 0.001 for millimetres): pairs sampled as above\n"
-    "  dg16m benchmark build --meshes my_meshes/ --out runs/mine --split couch,dining_table.obj\n"
-    "  # the shipped real meshes, with 40 robust pairs per object as a fifth arm\n"
-    "  dg16m benchmark build --meshes tests/data/meshes --robust 40 --out runs/real\n"
+    "  # your own meshes, made ready by 'dg16m objects repair' (watertight, in metres): built\n"
+    "  # with the real-object settings, every mesh admitted or rejected with its reason\n"
+    "  dg16m objects repair raw_meshes/ --units cm --out my_meshes\n"
+    "  dg16m benchmark build --meshes my_meshes/ --out runs/mine --workers 2\n"
+    "  # a folder written by 'dg16m objects import-sweethome3d' is read the same way\n"
+    "  dg16m benchmark build --meshes runs/real_meshes --out runs/real_some --split chair_1,bed_3\n"
+    "  # the shipped test meshes as before 2026-12-05: no screen, no budgets, no robust pairs\n"
+    "  dg16m benchmark build --meshes tests/data/meshes --mesh-settings plain --out runs/plain\n"
     "  # a folder written by 'dg16m generate' (grasps/<id>.h5; --meshes where it has no meshes/)\n"
     "  dg16m benchmark build --grasps runs/dataset --meshes my_meshes/ --out runs/mine_dg16m\n"
     "  # release DG16M files (Robotiq 2F-85 poses), objects listed in split.txt, hands that\n"
@@ -83,7 +87,12 @@ def register(subparsers: Any) -> None:
             "changes the grasps, and how many hands moved and how far is always reported "
             "(manifest, benchmark info). Writes OUT/objects/<id>.h5, OUT/manifest.json and "
             "OUT/benchmark.h5 (schema version 2). Results do not depend on --workers or "
-            "--backend; reruns resume."
+            "--backend; reruns resume. Mesh files without --grasps are built with the real-object "
+            "settings (--mesh-settings real, the default): a screen of 40 force-closure pairs "
+            "before the decomposition, CPU budgets per stage and at most 10 minutes of wall time "
+            "per object, each rejected mesh listed with its stage and the reason in words. "
+            "Ctrl-C or SIGTERM stops the build and every process it started within seconds; "
+            "finished objects stay done."
         ),
     )
     build.add_argument("--out", type=Path, required=True, help="output folder")
@@ -151,11 +160,22 @@ def register(subparsers: Any) -> None:
     build.add_argument(
         "--robust",
         type=int,
-        default=0,
+        default=None,
         metavar="N",
         help="also draw N robust pairs per object (arm fc_robust, beyond the paper: force-closure "
         "passing and a disturbance motion ratio <= 1 against every protocol load, see "
-        "dataset_gen.robust; default 0: the paper's four arms only)",
+        "dataset_gen.robust; default 20 for --meshes with the real settings, else 0: the "
+        "paper's four arms only)",
+    )
+    build.add_argument(
+        "--mesh-settings",
+        choices=("real", "plain"),
+        default=None,
+        help="--meshes without --grasps: 'real' (default) builds them as the real benchmark's "
+        "furniture: a screen that rejects objects giving fewer than 40 force-closure pairs "
+        "before their decomposition, the real CoACD settings, budgets of CPU time per stage "
+        "and at most 10 minutes of wall time per object, each rejection with its stage and "
+        "reason; 'plain': the procedural objects' settings, no screen and no budgets",
     )
     add_simulator_arguments(build)
     build.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -411,11 +431,41 @@ def _build(args: argparse.Namespace) -> int:
         )
     except LabelError as exc:
         raise BenchmarkError(f"--perturbations: {exc}") from None
-    if args.robust < 0:
+    if args.robust is not None and args.robust < 0:
         raise BenchmarkError(f"--robust: expected an integer >= 0, found {args.robust}")
+    real_settings = args.meshes is not None and args.grasps is None
+    if args.mesh_settings is not None and not real_settings:
+        raise BenchmarkError(
+            "--mesh-settings: expected only with --meshes and without --grasps (sampled "
+            "pairs on mesh files), found it without"
+        )
+    real_settings &= args.mesh_settings in (None, "real")
     simulator = simulator_from_args(args)
     items = _sources(args)
-    params = BenchmarkParameters(seed=args.seed, perturbation=perturbation, n_robust=args.robust)
+    limits = None
+    if real_settings:
+        from dataclasses import replace
+
+        from dg16m_env.benchmark.real import MESH_LIMITS, REAL_PARAMETERS
+
+        params = replace(
+            REAL_PARAMETERS,
+            seed=args.seed,
+            perturbation=perturbation,
+            n_robust=REAL_PARAMETERS.n_robust if args.robust is None else args.robust,
+        )
+        limits = MESH_LIMITS
+        print(
+            f"{len(items)} meshes with the real-object settings (--mesh-settings real): each "
+            f"needs {limits.min_passing} force-closure pairs; CPU budgets decomposition "
+            f"{limits.decompose_s:g} s, sampling {limits.sample_s:g} s, trials "
+            f"{limits.label_s:g} s; each ends admitted or rejected within "
+            f"{limits.wall_bound_s():g} s of wall time"
+        )
+    else:
+        params = BenchmarkParameters(
+            seed=args.seed, perturbation=perturbation, n_robust=args.robust or 0
+        )
     try:
         path = build_benchmark(
             items,
@@ -426,6 +476,7 @@ def _build(args: argparse.Namespace) -> int:
             address=args.address,
             progress=not args.no_progress,
             simulator=simulator,
+            limits=limits,
         )
     except NothingBuiltError as exc:
         if len(exc.failed) != len(items):
