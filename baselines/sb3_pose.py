@@ -3,18 +3,27 @@
 Reads top to bottom (CleanRL style): one dataclass of arguments, then the run.
 
 1. Split the benchmark's objects: every third object held out for evaluation.
-2. Train stable-baselines3 SAC on the training objects: one step per episode, the action is
-   two hand poses (position + 6D rotation each, ``Box(-1, 1, (2, 9))``), the reward is one
-   perturbed MuJoCo trial of the benchmark's protocol (1 = held through every disturbance).
-   The policy sees a 64-point cloud with normals and the object's box.
+2. Train stable-baselines3 SAC (``--algo ppo``: PPO) on the training objects: one step per
+   episode, the reward is one perturbed MuJoCo trial of the benchmark's protocol (1 = held
+   through every disturbance). The policy sees a 64-point cloud with normals and the object's
+   box. The action (``--action-mode``): ``pose``, two free hand poses (position + 6D rotation
+   each, ``Box(-1, 1, (2, 9))``); ``surface``, two hands placed on observed surface points,
+   approaching along the inward normals (``[point, roll, depth]`` each, ``Box(-1, 1, (2, 3))``,
+   :mod:`dg16m_env.envs.pose_surface_actions`).
 3. Evaluate on the held-out objects with the registered ``policy`` evaluator: the trained
-   policy and uniformly random actions, on the same seeded episodes (Wilson 95% intervals).
+   policy and uniformly random actions of the same mode, on the same seeded episodes (Wilson
+   95% intervals); in surface mode also uniformly random pose-mode actions, for reference.
 4. Write the checkpoint, the learning curve (PNG) and the results (JSON) to ``--out``.
 
-    .venv/bin/python -m baselines.sb3_pose --total-timesteps 10000 --out runs/sb3_pose
+Run it::
 
-A sparse one-trial reward in an 18-dimensional continuous action space is a hard exploration
-problem: expect little from a 10-minute budget (the results file says what it got).
+    .venv/bin/python -m baselines.sb3_pose --total-timesteps 10000 --out runs/sb3_pose
+    .venv/bin/python -m baselines.sb3_pose --action-mode surface --total-timesteps 20000 \\
+        --eval-episodes 1000 --out runs/sb3_pose_surface
+
+In pose mode a sparse one-trial reward in an 18-dimensional continuous action space is a hard
+exploration problem: uniformly random poses almost never touch the object. Surface mode puts
+every hand on the object's observed surface (the results file says what each got).
 """
 
 from __future__ import annotations
@@ -34,84 +43,132 @@ from baselines.sb3_common import (
     save_model,
     split_objects,
 )
+from dg16m_env.envs.dual_grasp_pose import ACTION_MODES
 from dg16m_env.evaluators import load_benchmark_ref, make
 
 ENV_ID = "dg16m_env/DualGraspPose-v0"
+ALGOS = ("sac", "ppo")
 
 
 @dataclass
 class Args:
     seed: int = 0
     """seed of the training environment, the policy and the evaluation episodes"""
+    action_mode: str = "pose"
+    """the environment's action_mode: "pose" (two free hand poses) or "surface" (two hands on
+    observed surface points, approaching along the normals)"""
+    algo: str = "sac"
+    """the learner: "sac" or "ppo" (stable-baselines3 defaults otherwise, gamma 0)"""
     total_timesteps: int = 10_000
-    """environment steps of SAC training (one step = one episode)"""
+    """environment steps of training (one step = one episode)"""
     learning_rate: float = 3e-4
     """Adam learning rate"""
     batch_size: int = 256
-    """SAC minibatch size"""
+    """SAC / PPO minibatch size"""
     learning_starts: int = 1_000
-    """random steps collected before learning starts"""
+    """SAC: random steps collected before learning starts"""
+    n_envs: int = 1
+    """environments stepped together (PPO: its rollout is n_envs x n_steps)"""
+    n_steps: int = 1_024
+    """PPO: steps per environment per update"""
     n_points: int = 64
     """points of the object's cloud in each observation"""
     eval_episodes: int = 200
-    """seeded evaluation episodes after training (the policy evaluator)"""
+    """seeded evaluation episodes after training, for each evaluated policy"""
     eval_seed: int = 100_000
     """first seed of the evaluation episodes (apart from the training seeds)"""
     out: Path = Path("runs/sb3_pose")
     """output folder: model, learning curve, results"""
 
 
+def uniform_actions(shape: tuple[int, ...], seed: int) -> Any:
+    """A policy drawing each action uniformly from ``[-1, 1]^shape`` (float32)."""
+    rng = np.random.default_rng(seed)
+
+    def act(observation: Any) -> np.ndarray:
+        return rng.uniform(-1.0, 1.0, size=shape).astype(np.float32)
+
+    return act
+
+
 def main() -> None:
     args = parse_args(Args, __doc__.split("\n\n")[0])
-    from stable_baselines3 import SAC
+    if args.action_mode not in ACTION_MODES:
+        raise SystemExit(
+            f"--action-mode: expected one of {ACTION_MODES}, found {args.action_mode!r}"
+        )
+    if args.algo not in ALGOS:
+        raise SystemExit(f"--algo: expected one of {ALGOS}, found {args.algo!r}")
+    from stable_baselines3 import PPO, SAC
     from stable_baselines3.common.env_util import make_vec_env
 
     args.out.mkdir(parents=True, exist_ok=True)
     ref = load_benchmark_ref()
     train_ids, test_ids = split_objects(ref.object_ids)
-    env_kwargs = {"n_points": args.n_points, "fc_info": False}
+    env_kwargs = {"n_points": args.n_points, "fc_info": False, "action_mode": args.action_mode}
+    if args.action_mode == "pose":
+        del env_kwargs["action_mode"]  # the registered default, as before the option existed
 
     # --- training ------------------------------------------------------------------------------
     train_env = make_vec_env(
-        ENV_ID, n_envs=1, seed=args.seed, env_kwargs={**env_kwargs, "object_ids": train_ids}
+        ENV_ID,
+        n_envs=args.n_envs,
+        seed=args.seed,
+        env_kwargs={**env_kwargs, "object_ids": train_ids},
     )
     curve = reward_curve_callback()
-    model = SAC(
-        "MultiInputPolicy",
-        train_env,
-        learning_rate=args.learning_rate,
-        batch_size=args.batch_size,
-        learning_starts=args.learning_starts,
-        buffer_size=args.total_timesteps,  # every step fits; SB3's default (1e6) wastes GBs
-        gamma=0.0,  # one step per episode
-        seed=args.seed,
-        device="cpu",
-        verbose=0,
-    )
+    common = {"learning_rate": args.learning_rate, "batch_size": args.batch_size, "gamma": 0.0}
+    if args.algo == "sac":
+        model: Any = SAC(
+            "MultiInputPolicy",
+            train_env,
+            learning_starts=args.learning_starts,
+            buffer_size=args.total_timesteps,  # every step fits; SB3's default (1e6) wastes GBs
+            seed=args.seed,
+            device="cpu",
+            verbose=0,
+            **common,
+        )
+    else:
+        model = PPO(
+            "MultiInputPolicy",
+            train_env,
+            n_steps=args.n_steps,
+            gae_lambda=1.0,  # one step per episode: the advantage is reward - value
+            seed=args.seed,
+            device="cpu",
+            verbose=0,
+            **common,
+        )
     started = time.perf_counter()
     model.learn(total_timesteps=args.total_timesteps, callback=curve)
     train_s = time.perf_counter() - started
-    save_model(model, args.out / "sac_pose.zip")
+    suffix = "" if args.action_mode == "pose" else f"_{args.action_mode}"
+    save_model(model, args.out / f"{args.algo}_pose{suffix}.zip")
 
     # --- evaluation on held-out objects ---------------------------------------------------------
-    evaluator = make(
-        "policy",
-        env_id=ENV_ID,
-        n_episodes=args.eval_episodes,
-        seed=args.eval_seed,
-        env_kwargs={**env_kwargs, "object_ids": test_ids},
-        progress=True,
-    )
-    rng = np.random.default_rng(args.seed)
+    def evaluator(kwargs: dict[str, Any]) -> Any:
+        return make(
+            "policy",
+            env_id=ENV_ID,
+            n_episodes=args.eval_episodes,
+            seed=args.eval_seed,
+            env_kwargs={**kwargs, "object_ids": test_ids},
+            progress=True,
+        )
 
-    def random_actions(observation: Any) -> np.ndarray:
-        return rng.uniform(-1.0, 1.0, size=(2, 9)).astype(np.float32)
-
+    shape = tuple(int(n) for n in train_env.action_space.shape)  # type: ignore[union-attr]
     started = time.perf_counter()
+    same_mode = evaluator(env_kwargs)
     results = {
-        "sac": evaluator.evaluate(model),
-        "random_actions": evaluator.evaluate(random_actions),
+        args.algo: same_mode.evaluate(model),
+        "random_actions": same_mode.evaluate(uniform_actions(shape, args.seed)),
     }
+    if args.action_mode != "pose":
+        pose_kwargs = {k: v for k, v in env_kwargs.items() if k != "action_mode"}
+        results["random_pose_actions"] = evaluator(pose_kwargs).evaluate(
+            uniform_actions((2, 9), args.seed)
+        )
     eval_s = time.perf_counter() - started
 
     # --- learning curve and results ----------------------------------------------------------
@@ -120,9 +177,9 @@ def main() -> None:
         results,
         curve,
         env_id=ENV_ID,
-        title="SAC on DualGraspPose-v0 (held-out objects)",
+        title=f"{args.algo.upper()} on DualGraspPose-v0, {args.action_mode} actions (held-out objects)",
         ylabel="success rate",
-        train_label="SAC training episodes (one trial each)",
+        train_label=f"{args.algo.upper()} training episodes (one trial each)",
         train_objects=len(train_ids),
         test_objects=len(test_ids),
         train_seconds=train_s,

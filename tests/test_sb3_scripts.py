@@ -31,6 +31,14 @@ pytest.importorskip("stable_baselines3")
             ["--total-timesteps", "150", "--learning-starts", "50"],
             {"sac", "random_actions"},
         ),
+        (
+            "baselines.sb3_pose",
+            [
+                *("--action-mode", "surface", "--algo", "ppo", "--total-timesteps", "64"),
+                *("--n-steps", "32", "--batch-size", "32"),
+            ],
+            {"ppo", "random_actions", "random_pose_actions"},
+        ),
     ],
 )
 def test_script_writes_checkpoint_curve_and_results(tmp_path: Path, module, argv, policies) -> None:

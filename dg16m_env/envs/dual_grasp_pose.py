@@ -10,13 +10,27 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from .common import STATUS_NOT_RUN, OneStepGraspEnv, Outcome, check_box_action, cloud_spaces
+from .common import (
+    STATUS_NOT_RUN,
+    EnvArgumentError,
+    OneStepGraspEnv,
+    Outcome,
+    check_box_action,
+    cloud_spaces,
+    structured_observation,
+)
+from .pose_surface_actions import poses_from_surface_action, surface_action_bounds
 from .spaces import pose_action_bounds, poses_from_action
+
+ACTION_MODES = ("pose", "surface")
+"""``"pose"`` (default): two free hand poses; ``"surface"``: two hands on observed surface
+points (:mod:`dg16m_env.envs.pose_surface_actions`)."""
 
 
 class DualGraspPoseEnv(OneStepGraspEnv):
-    """Two Panda hands grasp a benchmark object at the poses the agent proposes; one trial of
-    the benchmark's protocol says whether the object is held.
+    """Two Panda hands grasp a benchmark object at the poses the agent proposes (free poses, or
+    hands placed on observed surface points); one trial of the benchmark's protocol says whether
+    the object is held.
 
     ## Description
 
@@ -34,13 +48,39 @@ class DualGraspPoseEnv(OneStepGraspEnv):
 
     ## Action Space
 
-    ``Box(-1, 1, (2, 9), float32)``: per hand ``[p (3), a (3), b (3)]``, the position ``p`` (m,
-    object frame, within ±1 m) and the continuous 6D rotation (:mod:`dg16m_env.envs.spaces`):
-    ``a`` the closing axis, ``b`` the approach axis, orthonormalised by Gram-Schmidt. Float64
-    arrays and lists are cast; anything outside the space (NaN, out of bounds, wrong shape,
-    strings or objects) raises ``ValueError`` naming the space. An action whose 6D rotation is
-    degenerate (an axis of length < 1e-3 or ``a`` parallel to ``b``) is not an error: no trial
-    runs, reward 0, ``info["invalid_reason"] = "degenerate_rotation"``.
+    ``action_mode="pose"`` (default): ``Box(-1, 1, (2, 9), float32)``: per hand ``[p (3), a (3),
+    b (3)]``, the position ``p`` (m, object frame, within ±1 m) and the continuous 6D rotation
+    (:mod:`dg16m_env.envs.spaces`): ``a`` the closing axis, ``b`` the approach axis,
+    orthonormalised by Gram-Schmidt. An action whose 6D rotation is degenerate (an axis of
+    length < 1e-3 or ``a`` parallel to ``b``) is not an error: no trial runs, reward 0,
+    ``info["invalid_reason"] = "degenerate_rotation"``.
+
+    ``action_mode="surface"``: ``Box(-1, 1, (2, 3), float32)``: per hand ``[point, roll,
+    depth]``, a hand placed on a point of the cloud the agent saw at reset, approaching along
+    the point's inward normal (:mod:`dg16m_env.envs.pose_surface_actions`):
+
+    * ``point`` picks a valid point (``mask`` 1 in partial mode) by its height rank:
+      ``i = floor((point + 1) / 2 * n)`` clipped to ``[0, n - 1]`` among the ``n`` valid points
+      sorted by object-frame ``z`` (ascending, stable): -1 the lowest, 1 the highest;
+    * the approach axis (grasp frame ``+y``) is the point's inward normal ``-n̂``; the closing
+      axis (``+x``) is, before the roll, the object frame's ``+z`` projected perpendicular to the
+      approach (``+x`` projected when the approach is within about 26 degrees of vertical);
+    * ``roll`` turns the closing axis by ``pi * roll`` rad about the approach axis
+      (right-handed): ``roll = 0`` closes vertically on a side face, ``±0.5`` horizontally;
+    * ``depth`` sets the flange's standoff along the outward normal, linearly from 0.066 m
+      (``depth = -1``: the Panda's palm face on the tangent plane, grasp centre 37.4 mm inside
+      the surface) to 0.1122 m (``depth = 1``: the fingertips on the tangent plane, grasp centre
+      8.8 mm outside); the grasp centre (0.1034 m from the flange) sits on the point at
+      ``depth`` about 0.62.
+
+    The two poses then run the same trial as in pose mode. A chosen point whose normal is
+    degenerate (shorter than 0.5 or not finite), or an observation without a valid point, is
+    not an error: no trial runs, reward 0, ``info["invalid_reason"] = "degenerate_normal"``
+    (or ``"no_valid_point"``). ``info["point_index"]``: the chosen points' indices into the
+    observation's cloud (-1 where none).
+
+    In both modes float64 arrays and lists are cast; anything outside the space (NaN, out of
+    bounds, wrong shape, strings or objects) raises ``ValueError`` naming the space.
 
     ## Observation Space
 
@@ -63,7 +103,7 @@ class DualGraspPoseEnv(OneStepGraspEnv):
 
     1.0 when the object is held at ``level``: ``"full"`` (default), held through the whole
     protocol; ``"gravity"``, held under gravity (nothing broke before the end of the gravity
-    phase). 0.0 otherwise (failed, unstable, invalid trial, degenerate rotation).
+    phase). 0.0 otherwise (failed, unstable, invalid trial, degenerate rotation or normal).
 
     ## Starting State
 
@@ -83,8 +123,9 @@ class DualGraspPoseEnv(OneStepGraspEnv):
     (largest slip at the hands' grasp centres, m), ``rotation_deg`` (largest rotation of the
     object), ``failing_phase`` (a :data:`dg16m_env.physics.trial.PHASES` name, or None),
     ``invalid_reason`` (``hand0_penetrates``, ``hand1_penetrates``, ``hands_overlap``,
-    ``degenerate_rotation`` or None), ``status`` (``success``, ``failed``, ``invalid``,
-    ``unstable``, or ``not_run``). Entries that do not apply are None.
+    ``degenerate_rotation``, ``degenerate_normal``, ``no_valid_point`` or None), ``status`` (``success``, ``failed``, ``invalid``,
+    ``unstable``, or ``not_run``); surface mode only: ``point_index`` (a tuple of two ints).
+    Entries that do not apply are None.
 
     ## Randomisations
 
@@ -94,6 +135,7 @@ class DualGraspPoseEnv(OneStepGraspEnv):
 
     ## Arguments
 
+    * ``action_mode`` (``"pose"``): ``"pose"`` or ``"surface"`` (see Action Space).
     * ``benchmark``: benchmark file or :class:`~dg16m_env.benchmark.ref.BenchmarkRef`
       (default: the procedural benchmark shipped with dg16m); its parameters give the protocol,
       the pose noise and the force-closure problem.
@@ -121,26 +163,55 @@ class DualGraspPoseEnv(OneStepGraspEnv):
     * v0: initial. Later (same id, same default): `benchmark` also takes a shipped benchmark's
       short name (`"procedural"`, the default, or `"real"`: 300 furniture models, shipped
       since 2026-12-03), and mesh benchmarks that carry their meshes need no `mesh_root`.
+      Later still (same id, same default, issue 40): ``action_mode="surface"``, hands placed on
+      observed surface points; ``action_mode="pose"`` (the default) is unchanged bit for bit.
     """
 
-    def __init__(self, **kwargs: Any) -> None:
+    def __init__(self, *, action_mode: str = "pose", **kwargs: Any) -> None:
+        if not isinstance(action_mode, str) or action_mode not in ACTION_MODES:
+            raise EnvArgumentError(
+                f"action_mode: expected one of {ACTION_MODES}, found {action_mode!r}"
+            )
         super().__init__(**kwargs)
-        low, high = pose_action_bounds(2)
+        self.action_mode = action_mode
+        if action_mode == "pose":
+            low, high = pose_action_bounds(2)
+        else:
+            low, high = surface_action_bounds(2)
         self.action_space = spaces.Box(low=low, high=high, dtype=np.float32)
         self.observation_space = spaces.Dict(
             cloud_spaces(self.n_points, self.obs_mode == "partial")
         )
 
+    def _not_run(self, reason: str, extra: dict[str, Any] | None = None) -> Outcome:
+        fc = (False, "invalid_pose") if self.fc_info else (None, None)
+        return Outcome(
+            success=False,
+            status=STATUS_NOT_RUN,
+            invalid_reason=reason,
+            fc_passed=fc[0],
+            fc_reason=fc[1],
+            extra=extra or {},
+        )
+
     def _act(self, action: Any) -> Outcome:
         checked = check_box_action(action, self.action_space)
+        if self.action_mode == "surface":
+            return self._act_surface(checked)
         poses, valid = poses_from_action(checked)
         if not valid.all():  # bounds already checked: only a degenerate rotation is left
-            fc = (False, "invalid_pose") if self.fc_info else (None, None)
-            return Outcome(
-                success=False,
-                status=STATUS_NOT_RUN,
-                invalid_reason="degenerate_rotation",
-                fc_passed=fc[0],
-                fc_reason=fc[1],
-            )
+            return self._not_run("degenerate_rotation")
         return self.trial(poses)
+
+    def _act_surface(self, checked: np.ndarray) -> Outcome:
+        assert self._observation is not None
+        cloud = structured_observation(self._observation)
+        poses, valid, indices, reasons = poses_from_surface_action(
+            checked, cloud["points"], cloud["normals"], cloud.get("mask")
+        )
+        extra = {"point_index": tuple(int(i) for i in indices)}
+        if not valid.all():
+            return self._not_run(next(r for r in reasons if r is not None), extra)
+        outcome = self.trial(poses)
+        outcome.extra.update(extra)
+        return outcome
