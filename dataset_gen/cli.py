@@ -46,7 +46,6 @@ from importlib import metadata
 from typing import Any
 
 from dataset_gen.errors import Dg16mError
-from dataset_gen.stopping import sigterm_interrupts
 
 COMMAND_GROUP = "dg16m.commands"
 """Entry-point group of the modules that add ``dg16m`` subcommands."""
@@ -269,8 +268,7 @@ def _run(argv: list[str]) -> int:
         parser.print_help()
         return 0
     try:
-        with sigterm_interrupts():  # SIGTERM stops a command as Ctrl-C does: children too
-            return int(args.handler(args) or 0)
+        return int(args.handler(args) or 0)
     except Dg16mError as exc:
         print(f"dg16m {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE

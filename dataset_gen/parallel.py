@@ -23,7 +23,7 @@ from typing import Any, Literal, Protocol, TypeVar
 
 from .errors import Dg16mError
 from .io import new_manifest, read_manifest, write_manifest
-from .stopping import die_with_parent
+from .stopping import die_with_parent, sigterm_interrupts
 
 Backend = Literal["local", "ray"]
 BACKENDS: tuple[str, ...] = ("local", "ray")
@@ -287,7 +287,9 @@ def run_resumable(
             smoothing=0.05,
         )
     try:
-        with remembered_interrupts() as interrupted:
+        # SIGTERM stops the run as Ctrl-C does: the pool and budget children stop, finished
+        # objects stay recorded (a server with its own SIGTERM handling is not affected)
+        with sigterm_interrupts(), remembered_interrupts() as interrupted:
             results = run_tasks(task, todo, args, workers=workers, backend=backend, address=address)
             try:
                 for item, entry in results:

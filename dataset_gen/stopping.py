@@ -4,13 +4,14 @@ Compiled code (CoACD, MuJoCo) cannot be interrupted from inside its own process,
 run in child processes (:mod:`dataset_gen.budget`, :mod:`dataset_gen.parallel`) that the parent
 stops. Two pieces make that hold whatever signal arrives and wherever:
 
-* :func:`sigterm_interrupts` (the ``dg16m`` command runs every handler inside it): SIGTERM raises
+* :func:`sigterm_interrupts` (every resumable run of objects,
+  :func:`dataset_gen.parallel.run_resumable`, is inside it): SIGTERM raises
   ``KeyboardInterrupt`` as Ctrl-C does, so the parent unwinds and stops its children; Python's
   default would end the parent at once and leave them running.
 * :func:`die_with_parent` (run first in every child): the kernel kills the child when its parent
   ends, however the parent ended (even SIGKILL), and the child leaves Ctrl-C to the parent.
 
-Stdlib only: the command line imports it on every run.
+Stdlib only.
 """
 
 from __future__ import annotations

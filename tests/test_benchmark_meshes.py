@@ -4,7 +4,6 @@ folders, re-seating of hands that start inside the object, and the per-pair diag
 
 from __future__ import annotations
 
-import functools
 import json
 import shutil
 from dataclasses import replace
@@ -20,10 +19,9 @@ from planks import DOWN, THICKNESS, dual, hand, plank
 from shipped_meshes import MESHES
 
 from dataset_gen.cli import main as cli_main
-from dataset_gen.decomposition import DecompositionParameters, object_parts
+from dataset_gen.decomposition import DecompositionParameters
 from dataset_gen.gripper import PANDA
 from dataset_gen.io import DualGraspSet, read_manifest, write_dg16m
-from dg16m_env.benchmark import build as benchmark_build
 from dg16m_env.benchmark.build import benchmark_object, build_benchmark
 from dg16m_env.benchmark.file import read_benchmark, write_benchmark
 from dg16m_env.benchmark.model import (
@@ -73,10 +71,12 @@ def mesh_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def mesh_build(mesh_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """``dg16m benchmark build --meshes DIR`` (no grasp files): the real-object settings (the
-    default for meshes: the paper's arms and 20 fc_robust pairs), the nominal trial only."""
+    """``dg16m benchmark build --meshes DIR --mesh-settings plain`` (no grasp files): the
+    default pair counts, the nominal trial only (the real-object settings, the default for
+    meshes, are run by tests/test_tutorial_own_meshes.py)."""
     out = tmp_path_factory.mktemp("mesh_bench")
     args = ["benchmark", "build", "--meshes", str(mesh_dir), "--out", str(out)]
+    args += ["--mesh-settings", "plain"]
     assert cli_main([*args, "--perturbations", "0", "--no-progress"]) == 0
     return out
 
@@ -103,7 +103,7 @@ def test_cli_builds_a_benchmark_from_a_mesh_folder(
     assert [o.object_id for o in bench.objects] == ["dining_table"]
     assert (obj.family, obj.seed, obj.file, obj.scale) == ("", -1, "dining_table.obj", 1.0)
     assert obj.parts, "the mesh is simulated through its convex parts"
-    assert set(bench.source.tolist()) == {SOURCES.index(arm) for arm in (*ARMS, "fc_robust")}
+    assert set(bench.source.tolist()) == {SOURCES.index(arm) for arm in ARMS}
     assert bench.labels.spec.trials == 1
     # The diagnostics are stored: the centre of mass, and each pair's hand-line distance
     # recomputed from its poses with the simulator's grasp centres.
@@ -435,20 +435,21 @@ def test_release_airplane_with_reseat(
     real_data: Path,
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
-    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """The DG16M release's Robotiq 2F-85 poses on the airplane: most open Panda hands start
     inside a convex part; re-seating moves them back and reports how far."""
     # The open airplane needs CoACD's voxel repair: about 80 s on one core at the default
-    # threshold, 30 s at 0.05. The coarser hulls test the same path.
-    coarse = functools.partial(object_parts, params=DecompositionParameters(threshold=0.05))
-    monkeypatch.setattr(benchmark_build, "object_parts", coarse)
+    # threshold, 30 s at 0.05. The coarser hulls test the same path. (A parameter, not a
+    # monkeypatch: a mesh object is built in a child process, which sees no monkeypatch.)
     (tmp_path / "meshes").mkdir()
     (tmp_path / "grasps").mkdir()
     (tmp_path / "meshes" / "dg16m_airplane.obj").symlink_to(real_data / "dg16m_airplane.obj")
     (tmp_path / "grasps" / "dg16m_airplane.h5").symlink_to(real_data / "dg16m_airplane.h5")
     params = BenchmarkParameters(
-        n_passing=10, n_failing=10, perturbation=PerturbationSpec(n_perturbations=0)
+        n_passing=10,
+        n_failing=10,
+        perturbation=PerturbationSpec(n_perturbations=0),
+        decomposition=DecompositionParameters(threshold=0.05),
     )
     plain, moved = (
         file_benchmark_sources(tmp_path / "meshes", tmp_path / "grasps", reseat_max=reseat)[0]

@@ -100,6 +100,7 @@ def test_the_quick_path_runs_as_written_on_two_shells_one_in_centimetres(
     # Both benches admitted with the real-object settings.
     bench = read_benchmark(tmp_path / "runs" / "mine_bench" / "benchmark.h5")
     assert sorted(o.object_id for o in bench.objects) == ["bench_cm", "bench_m"]
+    assert bench.arm_rows("fc_robust").any(), "the real settings draw fc_robust pairs"
     built = json.loads((tmp_path / "runs" / "mine_bench" / "manifest.json").read_text())
     assert built["parameters"]["limits"]["object_wall_s"] == 600.0
     for entry in built["entries"].values():
