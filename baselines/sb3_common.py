@@ -185,3 +185,13 @@ def write_run(path: Path, args: Any, results: dict[str, EvaluationResult], **ext
             "results": {name: r.to_dict() for name, r in results.items()},
         },
     )
+
+
+def uniform_actions(shape: tuple[int, ...], seed: int) -> Any:
+    """A policy drawing each action uniformly from ``[-1, 1]^shape`` (float32)."""
+    rng = np.random.default_rng(seed)
+
+    def act(observation: Any) -> np.ndarray:
+        return rng.uniform(-1.0, 1.0, size=shape).astype(np.float32)
+
+    return act

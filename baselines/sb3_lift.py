@@ -22,9 +22,6 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
-
-import numpy as np
 
 import dg16m_env  # noqa: F401  registers the environments
 from baselines.sb3_common import (
@@ -33,6 +30,7 @@ from baselines.sb3_common import (
     reward_curve_callback,
     save_model,
     split_objects,
+    uniform_actions,
 )
 from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
 from dg16m_env.evaluators import load_benchmark_ref, make
@@ -116,16 +114,11 @@ def main() -> None:
         env_kwargs={**env_kwargs, "object_ids": test_ids},
         progress=True,
     )
-    rng = np.random.default_rng(args.seed)
-
-    def random_actions(observation: Any) -> np.ndarray:
-        return rng.uniform(-1.0, 1.0, size=14).astype(np.float32)
-
     started = time.perf_counter()
     results = {
         "ppo": evaluator.evaluate(model),
         "scripted": evaluator.evaluate(ScriptedLiftPolicy()),
-        "random_actions": evaluator.evaluate(random_actions),
+        "random_actions": evaluator.evaluate(uniform_actions((14,), args.seed)),
     }
     eval_s = time.perf_counter() - started
 

@@ -33,8 +33,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 import dg16m_env  # noqa: F401  registers the environments
 from baselines.sb3_common import (
     parse_args,
@@ -42,6 +40,7 @@ from baselines.sb3_common import (
     reward_curve_callback,
     save_model,
     split_objects,
+    uniform_actions,
 )
 from dg16m_env.envs.dual_grasp_pose import ACTION_MODES
 from dg16m_env.evaluators import load_benchmark_ref, make
@@ -79,16 +78,6 @@ class Args:
     """first seed of the evaluation episodes (apart from the training seeds)"""
     out: Path = Path("runs/sb3_pose")
     """output folder: model, learning curve, results"""
-
-
-def uniform_actions(shape: tuple[int, ...], seed: int) -> Any:
-    """A policy drawing each action uniformly from ``[-1, 1]^shape`` (float32)."""
-    rng = np.random.default_rng(seed)
-
-    def act(observation: Any) -> np.ndarray:
-        return rng.uniform(-1.0, 1.0, size=shape).astype(np.float32)
-
-    return act
 
 
 def main() -> None:

@@ -12,8 +12,8 @@ import argparse
 import json
 from pathlib import Path
 
-from baselines.sb3_common import split_objects
-from baselines.sb3_pose import ENV_ID, uniform_actions
+from baselines.sb3_common import split_objects, uniform_actions
+from baselines.sb3_pose import ENV_ID
 from dg16m_env.evaluators import load_benchmark_ref, make
 
 

@@ -122,7 +122,6 @@ def run_with_budget(
     *,
     total_wall_s: float | None = None,
     poll_s: float = 0.5,
-    on_stage: Callable[[str], None] | None = None,
 ) -> BudgetedResult:
     """``fn(*args, on_stage=callback)`` in a spawned child, each stage within ``budgets[stage]``
     seconds of the child's CPU time (stages without a budget are unlimited; the time before the
@@ -146,7 +145,6 @@ def run_with_budget(
         budgets: seconds per stage name.
         total_wall_s: wall seconds for all stages together (None: no such bound).
         poll_s: how often the parent checks the child (s).
-        on_stage: called in the parent with each stage's name as the child enters it.
 
     Raises:
         StageTimeoutError: a stage ran past its budget (the child is killed).
@@ -177,9 +175,6 @@ def run_with_budget(
     def over_budget(budget: float, now: float) -> bool:  # CPU past it, or WALL_FACTOR x wall
         return spent() > budget or now - started >= WALL_FACTOR * budget
 
-    def over_total(now: float) -> bool:
-        return total_wall_s is not None and now - began >= total_wall_s
-
     cpu_start = _cpu_seconds(process.pid) if process.pid is not None else None
     try:
         while True:
@@ -203,8 +198,6 @@ def run_with_budget(
                     times[stage] = times.get(stage, 0.0) + now - started
                     stage, started = value, now
                     cpu_start = _cpu_seconds(process.pid) if process.pid is not None else None
-                    if on_stage is not None:
-                        on_stage(stage)
                     continue
                 times[stage] = times.get(stage, 0.0) + now - started
                 process.join()
@@ -218,7 +211,7 @@ def run_with_budget(
             if budget is not None and over_budget(budget, now):
                 times[stage] = times.get(stage, 0.0) + now - started
                 raise StageTimeoutError(stage, budget, times)
-            if total_wall_s is not None and over_total(now):
+            if total_wall_s is not None and now - began >= total_wall_s:
                 times[stage] = times.get(stage, 0.0) + now - started
                 raise StageTimeoutError(stage, total_wall_s, times, whole=True)
             if not process.is_alive() and not receiver.poll():

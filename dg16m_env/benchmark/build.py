@@ -254,8 +254,9 @@ class BuildLimits:
             bound): what a loaded machine cannot stretch.
 
     Budgets are the child process's CPU seconds (:func:`dataset_gen.budget.run_with_budget`),
-    not wall time, so that a loaded machine does not reject what a quiet one admits (and 4x the
-    budget in wall time stops a stage that waits).
+    not wall time, so that a loaded machine does not reject what a quiet one admits (and
+    :data:`~dataset_gen.budget.WALL_FACTOR` times the budget in wall time stops a stage that
+    waits).
 
     An object past a budget is stopped (its child process is killed) and recorded as failed
     with ``rejected: "time budget"`` and the stage; one with too few pairs with ``rejected:
