@@ -2,12 +2,13 @@
 repair`` -> ``dg16m benchmark build --meshes`` with a verdict for every mesh, timed; and the
 held-out thin vase, built alone.
 
-The 12 raw files are taken from Debian's ``sweethome3d-furniture`` package (KatorLegaz library,
-CC-BY; ``apt-get install -y sweethome3d-furniture``) as loose OBJ files, not through the
-importer: units unknown, not watertight, many pieces, the situation of a user with files from
-another application. Meshes whose units the repair refuses to guess are rerun alone with
-``--target-extent`` from the library's catalogue (the longest of its width, depth and height),
-as the refusal message tells a user to do.
+The 12 raw files are taken from Debian's ``sweethome3d-furniture`` package (the KatorLegaz
+library, Copyright 2003-2008 Andrew Kator & Jennifer Legaz, Creative Commons Attribution 3.0
+United States; ``apt-get install -y sweethome3d-furniture``; nothing of it is shipped) as loose
+OBJ files, not through the importer: units unknown, not watertight, many pieces, the situation
+of a user with files from another application. Meshes whose units the repair refuses to guess
+are rerun alone with ``--target-extent`` from the library's catalogue (the longest of its
+width, depth and height), as the refusal message tells a user to do.
 
     .venv/bin/python bench/own_meshes_end_to_end.py --work runs/own12 --workers 2
     .venv/bin/python bench/own_meshes_end_to_end.py --work runs/vase --vase-only
@@ -30,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+
+from dataset_gen.atomic import write_json_atomic
 
 LIBRARY = Path("/usr/share/sweethome3d/furniture/KatorLegaz.sh3f")
 MODELS = (
@@ -147,7 +150,7 @@ def main() -> None:
         f"{len(result['verdicts']) - ok} rejected; total "
         f"{sum(float(s['seconds']) for s in steps):.0f} s"  # type: ignore[arg-type]
     )
-    (args.work / "summary.json").write_text(json.dumps(result, indent=2))
+    write_json_atomic(args.work / "summary.json", result)
 
 
 if __name__ == "__main__":
