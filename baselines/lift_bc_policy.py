@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import pickle
 from pathlib import Path
 from typing import Any
 
@@ -223,11 +224,10 @@ class LiftBCPolicy:
     def __call__(self, obs: Any) -> np.ndarray:
         return self.act(state_vector(obs, "LiftBCPolicy"))[0]
 
-    def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the weights and normalisation to ``path`` (torch file), atomically."""
-        import torch
-
-        payload = {
+    def payload(self) -> dict[str, Any]:
+        """The weights, sizes and normalisation as a dictionary (what :meth:`save` writes;
+        :meth:`from_payload` reads it back)."""
+        return {
             "format": FORMAT,
             "version": VERSION,
             "hidden": self.hidden,
@@ -236,8 +236,13 @@ class LiftBCPolicy:
             "std": self.std,
             "state_dict": self.network.state_dict(),
         }
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write :meth:`payload` to ``path`` (torch file), atomically."""
+        import torch
+
         with atomic_path(Path(path)) as tmp:
-            torch.save(payload, tmp)
+            torch.save(self.payload(), tmp)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> LiftBCPolicy:
@@ -246,13 +251,19 @@ class LiftBCPolicy:
 
         try:
             payload = torch.load(path, map_location="cpu", weights_only=False)
-        except (OSError, RuntimeError, EOFError) as exc:
+        except (OSError, RuntimeError, EOFError, pickle.UnpicklingError) as exc:
             raise ValueError(f"{path}: expected a saved LiftBCPolicy, found: {exc}") from None
+        return cls.from_payload(payload, str(path))
+
+    @classmethod
+    def from_payload(cls, payload: Any, source: str = "payload") -> LiftBCPolicy:
+        """The policy of a :meth:`payload` dictionary; ``ValueError`` (naming ``source``) for
+        anything else."""
         if not isinstance(payload, dict) or payload.get("format") != FORMAT:
-            raise ValueError(f"{path}: expected a file of format {FORMAT!r}, found another file")
+            raise ValueError(f"{source}: expected a file of format {FORMAT!r}, found another file")
         if payload.get("version") != VERSION:
             raise ValueError(
-                f"{path}: expected version {VERSION}, found version {payload.get('version')!r}"
+                f"{source}: expected version {VERSION}, found version {payload.get('version')!r}"
             )
         network = make_network(payload["hidden"], payload["layers"])
         network.load_state_dict(payload["state_dict"])

@@ -37,10 +37,12 @@ subprocesses whose ``PYTHONPATH`` picks the tree, the two trees alternating ``--
   the step time just measured (what two workers can gain on this machine at that moment);
 * **make**: ``gym.make`` of the procedural and of the real benchmark in a fresh process
   (the environment module's import included), then the first ``reset``;
-* **render**: the first 240x180 ``rgb_array`` frame and the next ones (one step between).
+* **render**: the first 240x180 ``rgb_array`` frame and the next ones (one step between), of
+  v0 and of ``DualGraspLift-v1`` (1024-pixel shadow maps).
 
     .venv/bin/python bench/env_lift.py --speed                        # ~4 min on 2 cores
     .venv/bin/python bench/env_lift.py --speed --reference /tmp/lift_ref --rounds 5 --json x.json
+    .venv/bin/python bench/env_lift.py --speed --only render          # the frames only
 
 ``--timesteps 0.002,0.005,0.01`` (a study for a later version, not what v0 does): the scripted
 expert with the benchmark's target on the same seeded episodes with the scene's timestep
@@ -432,10 +434,14 @@ print(json.dumps({"import_s": t1 - t0, "make_s": t2 - t1, "reset_s": t3 - t2}))
 (the environment module's import is part of ``gym.make``), then of the first reset."""
 
 
-def probe_render(frames: int, benchmark: str) -> dict[str, Any]:
+def probe_render(frames: int, benchmark: str, env_id: str = LIFT_ID) -> dict[str, Any]:
     """Seconds of the first ``rgb_array`` frame and the median of the next ones."""
+    import gymnasium as gym
+
+    import dg16m_env  # noqa: F401  (registers the environments)
+
     width, height = RENDER_SIZE
-    env = _lift(render_mode="rgb_array", width=width, height=height, benchmark=benchmark)
+    env = gym.make(env_id, render_mode="rgb_array", width=width, height=height, benchmark=benchmark)
     env.action_space.seed(0)
     env.reset(seed=0)
     t0 = time.perf_counter()
@@ -494,8 +500,9 @@ def _reference_tree(given: Path | None) -> Iterator[Path]:
             )
 
 
-def speed(reference: Path | None, rounds: int, json_path: Path | None) -> int:
-    """The issue 40 table: each probe on both trees, alternating, medians and ratios."""
+def speed(reference: Path | None, rounds: int, json_path: Path | None, only: str = "") -> int:
+    """The issue 40 table: each probe on both trees, alternating, medians and ratios (only the
+    measurements whose label contains ``only``)."""
     here = Path(__file__).resolve().parents[1]
     cases: list[tuple[str, str, dict[str, Any], str]] = [
         # (label, probe, kwargs, key: "" for the render probes' two times)
@@ -509,7 +516,13 @@ def speed(reference: Path | None, rounds: int, json_path: Path | None) -> int:
         ("gym.make real (s)", "make", {"benchmark": "real"}, "make_s"),
         ("render procedural (s)", "render", {"frames": 6, "benchmark": "procedural"}, ""),
         ("render real (s)", "render", {"frames": 6, "benchmark": "real"}, ""),
+        ("render v1 procedural (s)", "render", {"frames": 6, "benchmark": "procedural"}, ""),
+        ("render v1 real (s)", "render", {"frames": 6, "benchmark": "real"}, ""),
     ]
+    for label, _, kwargs, _ in cases:
+        if "v1" in label:
+            kwargs["env_id"] = "dg16m_env/DualGraspLift-v1"
+    cases = [case for case in cases if only in case[0]]
     results: dict[str, Any] = {"date": time.strftime("%Y-%m-%d"), "rounds": rounds, "probes": {}}
     with _reference_tree(reference) as ref:
         results["reference"] = str(ref)
@@ -517,6 +530,8 @@ def speed(reference: Path | None, rounds: int, json_path: Path | None) -> int:
         print(f"{'measurement':46s} {'this tree':>10s} {'reference':>10s} {'speed-up':>9s}")
         for kind, seeds in (("random", list(range(6))), ("scripted", list(range(6)))):
             label = f"one env, {kind} {'actions' if kind == 'random' else 'expert'} (steps/s)"
+            if only not in label:
+                continue
             got = paired_steps({"this": here, "reference": ref}, kind, seeds, max(1, rounds // 2))
             results["probes"][label] = got
             rate = got["steps_per_s"]
@@ -659,6 +674,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--reference", type=Path, help="--speed: the reference tree (default HEAD)")
     parser.add_argument("--rounds", type=int, default=5, help="--speed: alternations per probe")
     parser.add_argument(
+        "--only", default="", help="--speed: only the measurements whose label contains this"
+    )
+    parser.add_argument(
         "--timesteps", help="study: comma-separated scene timesteps (s), scripted episodes"
     )
     parser.add_argument("--probe", help=argparse.SUPPRESS)  # one measurement, in a subprocess
@@ -671,7 +689,7 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(PROBES[args.probe](**json.loads(args.probe_args))))
         return 0
     if args.speed:
-        return speed(args.reference, args.rounds, args.json)
+        return speed(args.reference, args.rounds, args.json, args.only)
     if args.timesteps:
         steps = [float(x) for x in args.timesteps.split(",")]
         return timestep_study(steps, args.episodes, args.json)

@@ -366,3 +366,26 @@ def test_rgb_array_render(bench_path: Path, can_render: bool) -> None:
     assert env.render().shape == (120, 160, 3)
     env.close()
     env.close()  # closing twice is allowed
+
+
+def test_v1_renders_with_smaller_shadow_maps(can_render: bool) -> None:
+    """v1 draws shadows into 1024-pixel maps (v0: the model's 4096); the shared model keeps its
+    value, and the picture differs from v0's at a few shadow-edge pixels only."""
+    if not can_render:
+        pytest.skip("no offscreen OpenGL here")
+    env = gym.make(
+        "dg16m_env/DualGraspLift-v1", render_mode="rgb_array", width=160, height=120
+    ).unwrapped
+    env.reset(seed=0)
+    small = env.render()
+    model = env._current.scene.model
+    assert env._renderer._mjr_context.shadowSize == 1024
+    assert model.vis.quality.shadowsize == 4096
+    env._renderer.close()
+    env._renderer = None
+    env.render_shadow_size = None  # as v0 renders
+    full = env.render()
+    assert env._renderer._mjr_context.shadowSize == 4096
+    changed = (small != full).any(axis=2).mean()
+    assert 0.0 < changed < 0.02
+    env.close()

@@ -78,6 +78,10 @@ def test_a_saved_policy_acts_the_same(tmp_path: Path, visited) -> None:
     torch.save({"format": "something else"}, other)
     with pytest.raises(ValueError, match="expected a file of format"):
         LiftBCPolicy.load(other)
+    broken = tmp_path / "broken.pt"
+    broken.write_bytes(b"not a torch file")
+    with pytest.raises(ValueError, match="expected a saved LiftBCPolicy"):
+        LiftBCPolicy.load(broken)
 
 
 def test_bad_observations_are_refused(visited) -> None:
