@@ -44,6 +44,9 @@ subprocesses whose ``PYTHONPATH`` picks the tree, the two trees alternating ``--
     .venv/bin/python bench/env_lift.py --speed --reference /tmp/lift_ref --rounds 5 --json x.json
     .venv/bin/python bench/env_lift.py --speed --only render          # the frames only
 
+``--versions 6``: steps/s of ``DualGraspLift-v0`` and ``-v1`` on the same seeded random-action
+episodes, alternating in one process, and the ratio v1 / v0.
+
 ``--timesteps 0.002,0.005,0.01`` (a study for a later version, not what v0 does): the scripted
 expert with the benchmark's target on the same seeded episodes with the scene's timestep
 changed (so fewer physics substeps per 50 ms control step): successes, unstable endings, time
@@ -573,6 +576,45 @@ def speed(reference: Path | None, rounds: int, json_path: Path | None, only: str
 
 
 # --------------------------------------------------------------------------------------------
+# --versions: v1 against v0 in one process
+# --------------------------------------------------------------------------------------------
+
+
+def versions(episodes: int, json_path: Path | None) -> int:
+    """Steps/s of ``env.step`` of ``DualGraspLift-v0`` and ``-v1`` (both with the benchmark's
+    target), the same seeded random-action episodes, the versions alternating episode by
+    episode in one process (the machine's load is shared), and the ratio v1 / v0."""
+    import gymnasium as gym
+
+    import dg16m_env  # noqa: F401  (registers the environments)
+
+    ids = {v: f"dg16m_env/DualGraspLift-{v}" for v in ("v0", "v1")}
+    envs = {v: gym.make(env_id, target_grasp="benchmark") for v, env_id in ids.items()}
+    steps = dict.fromkeys(envs, 0)
+    seconds = dict.fromkeys(envs, 0.0)
+    for episode in range(episodes):
+        order = list(envs) if episode % 2 == 0 else list(envs)[::-1]
+        for v in order:
+            rng = np.random.default_rng(episode)
+            envs[v].reset(seed=episode)
+            for _ in range(200):
+                action = rng.uniform(-1.0, 1.0, 14).astype(np.float32)
+                t0 = time.perf_counter()
+                _, _, terminated, truncated, _ = envs[v].step(action)
+                seconds[v] += time.perf_counter() - t0
+                steps[v] += 1
+                if terminated or truncated:
+                    break
+    rates = {v: steps[v] / seconds[v] for v in envs}
+    for v in envs:
+        print(f"{ids[v]:30s} {steps[v]:6d} steps {rates[v]:8.0f} steps/s")
+    print(f"v1 / v0: {rates['v1'] / rates['v0']:.2f}")
+    if json_path:
+        write_json_atomic(json_path, {"steps": steps, "steps_per_s": rates})
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
 # --timesteps: fewer, longer physics steps (a study for a later version)
 # --------------------------------------------------------------------------------------------
 
@@ -677,6 +719,9 @@ def main(argv: list[str] | None = None) -> int:
         "--only", default="", help="--speed: only the measurements whose label contains this"
     )
     parser.add_argument(
+        "--versions", type=int, metavar="EPISODES", help="v1 against v0: random-action episodes"
+    )
+    parser.add_argument(
         "--timesteps", help="study: comma-separated scene timesteps (s), scripted episodes"
     )
     parser.add_argument("--probe", help=argparse.SUPPRESS)  # one measurement, in a subprocess
@@ -690,6 +735,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.speed:
         return speed(args.reference, args.rounds, args.json, args.only)
+    if args.versions:
+        return versions(args.versions, args.json)
     if args.timesteps:
         steps = [float(x) for x in args.timesteps.split(",")]
         return timestep_study(steps, args.episodes, args.json)
