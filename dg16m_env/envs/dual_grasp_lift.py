@@ -806,11 +806,15 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
             return None
         if self._current is None:
             raise RuntimeError("render: expected reset() before render(), found no episode")
+        from dg16m_env.physics.replay import make_renderer
+
         scene, data = self._current.scene, self._current.data
         if self._renderer is None or self._renderer_model is not scene.model:
             if self._renderer is not None:
                 self._renderer.close()
-            self._renderer = self._make_renderer(scene.model)
+            self._renderer = make_renderer(
+                scene.model, self.height, self.width, self.render_shadow_size
+            )
             self._renderer_model = scene.model
             self._camera = None
         if self._camera is None:
@@ -830,20 +834,6 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
 
     render_shadow_size: int | None = None
     """Side of the lights' shadow maps when rendering (pixels); None: the model's (4096)."""
-
-    def _make_renderer(self, model: mujoco.MjModel) -> Any:
-        """The offscreen renderer of ``model``, with :attr:`render_shadow_size` shadow maps (read
-        when the OpenGL context is made; the shared model keeps its own value)."""
-        from dg16m_env.physics.replay import make_renderer
-
-        if self.render_shadow_size is None:
-            return make_renderer(model, self.height, self.width)
-        shipped = int(model.vis.quality.shadowsize)
-        model.vis.quality.shadowsize = self.render_shadow_size
-        try:
-            return make_renderer(model, self.height, self.width)
-        finally:
-            model.vis.quality.shadowsize = shipped
 
     def close(self) -> None:
         if self._renderer is not None:

@@ -400,15 +400,22 @@ def _match_gl_backend() -> None:
     gl_context._MUJOCO_GL = wanted
 
 
-def make_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
+def make_renderer(
+    model: mujoco.MjModel, height: int, width: int, shadow_size: int | None = None
+) -> mujoco.Renderer:
     """An offscreen ``mujoco.Renderer`` (``model``'s offscreen buffer must hold the size; see
-    :func:`render_model`).
+    :func:`render_model`), its lights' shadow maps ``shadow_size`` pixels a side (None: the
+    model's ``visual/quality/shadowsize``; ``model`` keeps its own value: the size is read
+    when the OpenGL context is made).
 
     Raises:
         RenderError: no OpenGL context (see the module docstring).
     """
+    shipped = int(model.vis.quality.shadowsize)
     try:
         _match_gl_backend()
+        if shadow_size is not None:
+            model.vis.quality.shadowsize = shadow_size
         return mujoco.Renderer(model, height, width)
     except Exception as exc:  # ImportError, RuntimeError, mujoco.FatalError, OSError, ...
         backend = os.environ.get("MUJOCO_GL", "")
@@ -416,6 +423,8 @@ def make_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Rend
             f"expected an offscreen OpenGL context (MUJOCO_GL={backend!r}), found: "
             f"{type(exc).__name__}: {str(exc).strip()}; {_INSTALL_HINT}"
         ) from exc
+    finally:
+        model.vis.quality.shadowsize = shipped
 
 
 def phase_ends(stepped: SteppedTrial) -> list[int]:
