@@ -18,7 +18,7 @@ what a learner sees and earns:
 Observations are taken after the control step's last physics step (v0 read positions and
 contacts as they were at the start of that physics step, 2 ms earlier); the physics is the same.
 ``render()`` draws the lights' shadows into 1024 x 1024 maps (v0: 4096 x 4096, 93% of a frame
-with Mesa's software OpenGL): a frame after the first takes about 10 ms (procedural objects) and
+with Mesa's software OpenGL): a frame after the first takes 10-25 ms (procedural objects) and
 40-50 ms (real furniture) instead of 0.09 and 0.15 s; the shadows' edges are softer.
 
 Rewards
