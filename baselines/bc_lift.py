@@ -52,12 +52,12 @@ from baselines.lift_bc_policy import (
     hand_features,
     make_network,
 )
-from baselines.sb3_common import parse_args, write_run
+from baselines.sb3_common import lift_held_out_evaluators, parse_args, write_run
 from dataset_gen.atomic import atomic_path
 from dg16m_env.envs.lift_feedback_expert import FeedbackLiftExpert
 from dg16m_env.envs.lift_observations import STATE_SIZE
 from dg16m_env.envs.objects import split_objects
-from dg16m_env.evaluators import EvaluationResult, load_benchmark_ref, make
+from dg16m_env.evaluators import EvaluationResult, load_benchmark_ref
 
 ENV_ID = "dg16m_env/DualGraspLift-v1"
 
@@ -286,30 +286,15 @@ def main() -> None:
         return rng.uniform(-1.0, 1.0, size=14).astype(np.float32)
 
     started = time.perf_counter()
-    evaluator = make(
-        "policy",
-        env_id=ENV_ID,
-        n_episodes=args.eval_episodes,
-        seed=args.eval_seed,
-        env_kwargs={"object_ids": test_ids},
-        progress=True,
+    evaluator, real_evaluator = lift_held_out_evaluators(
+        ENV_ID, test_ids, args.eval_episodes, args.real_eval_episodes, args.eval_seed
     )
     results: dict[str, EvaluationResult] = {
         "bc_dagger": evaluator.evaluate(policy),
         "expert": evaluator.evaluate(expert),
         "random_actions": evaluator.evaluate(random_actions),
     }
-    if args.real_eval_episodes:
-        real = load_benchmark_ref("real", lazy=True)
-        real_test = split_objects(list(real.object_ids))[1]
-        real_evaluator = make(
-            "policy",
-            env_id=ENV_ID,
-            n_episodes=args.real_eval_episodes,
-            seed=args.eval_seed,
-            env_kwargs={"benchmark": "real", "object_ids": real_test},
-            progress=True,
-        )
+    if real_evaluator is not None:
         results["bc_dagger_real"] = real_evaluator.evaluate(policy)
         results["expert_real"] = real_evaluator.evaluate(expert)
     eval_s = time.perf_counter() - started

@@ -188,6 +188,28 @@ def make_network(hidden: int, layers: int) -> Any:
     return torch.nn.Sequential(*modules)
 
 
+def read_payload(path: str | os.PathLike[str], kind: str) -> Any:
+    """What the torch file ``path`` holds; ``ValueError`` (naming ``kind``, the saved class) for
+    a file torch cannot read."""
+    import torch
+
+    try:
+        return torch.load(path, map_location="cpu", weights_only=False)
+    except (OSError, RuntimeError, EOFError, pickle.UnpicklingError) as exc:
+        raise ValueError(f"{path}: expected a saved {kind}, found: {exc}") from None
+
+
+def check_payload(payload: Any, fmt: str, version: int, source: str) -> None:
+    """``ValueError`` (naming ``source``) unless ``payload`` is a dictionary of format ``fmt``
+    and version ``version``."""
+    if not isinstance(payload, dict) or payload.get("format") != fmt:
+        raise ValueError(f"{source}: expected a file of format {fmt!r}, found another file")
+    if payload.get("version") != version:
+        raise ValueError(
+            f"{source}: expected version {version}, found version {payload.get('version')!r}"
+        )
+
+
 class LiftBCPolicy:
     """``policy(obs) -> action`` for ``DualGraspLift-v1`` (a ``"state"`` vector, or a
     ``"state_dict"`` / ``"pointcloud"`` observation's state): the trained network with its
@@ -247,24 +269,13 @@ class LiftBCPolicy:
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> LiftBCPolicy:
         """A policy saved by :meth:`save`; ``ValueError`` for another file."""
-        import torch
-
-        try:
-            payload = torch.load(path, map_location="cpu", weights_only=False)
-        except (OSError, RuntimeError, EOFError, pickle.UnpicklingError) as exc:
-            raise ValueError(f"{path}: expected a saved LiftBCPolicy, found: {exc}") from None
-        return cls.from_payload(payload, str(path))
+        return cls.from_payload(read_payload(path, "LiftBCPolicy"), str(path))
 
     @classmethod
     def from_payload(cls, payload: Any, source: str = "payload") -> LiftBCPolicy:
         """The policy of a :meth:`payload` dictionary; ``ValueError`` (naming ``source``) for
         anything else."""
-        if not isinstance(payload, dict) or payload.get("format") != FORMAT:
-            raise ValueError(f"{source}: expected a file of format {FORMAT!r}, found another file")
-        if payload.get("version") != VERSION:
-            raise ValueError(
-                f"{source}: expected version {VERSION}, found version {payload.get('version')!r}"
-            )
+        check_payload(payload, FORMAT, VERSION, source)
         network = make_network(payload["hidden"], payload["layers"])
         network.load_state_dict(payload["state_dict"])
         return cls(network, payload["mean"], payload["std"], payload["hidden"], payload["layers"])

@@ -23,13 +23,18 @@ Shapes: ``S`` ``(N, 117)`` ``"state"`` vectors; actions ``(N, 14)`` in [-1, 1]; 
 from __future__ import annotations
 
 import os
-import pickle
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from baselines.lift_bc_policy import FEATURES, LiftBCPolicy, hand_features
+from baselines.lift_bc_policy import (
+    FEATURES,
+    LiftBCPolicy,
+    check_payload,
+    hand_features,
+    read_payload,
+)
 from dataset_gen.atomic import atomic_path
 from dg16m_env.envs.lift_observations import state_vector
 
@@ -163,16 +168,8 @@ class LiftResidualPolicy:
         """A policy saved by :meth:`save`; ``ValueError`` for another file."""
         import torch
 
-        try:
-            payload = torch.load(path, map_location="cpu", weights_only=False)
-        except (OSError, RuntimeError, EOFError, pickle.UnpicklingError) as exc:
-            raise ValueError(f"{path}: expected a saved LiftResidualPolicy, found: {exc}") from None
-        if not isinstance(payload, dict) or payload.get("format") != FORMAT:
-            raise ValueError(f"{path}: expected a file of format {FORMAT!r}, found another file")
-        if payload.get("version") != VERSION:
-            raise ValueError(
-                f"{path}: expected version {VERSION}, found version {payload.get('version')!r}"
-            )
+        payload = read_payload(path, "LiftResidualPolicy")
+        check_payload(payload, FORMAT, VERSION, str(path))
         base = LiftBCPolicy.from_payload(payload.get("base"), f"{path} (its base policy)")
         actor, critic = make_actor(payload["hidden"]), make_critic(payload["hidden"])
         actor.load_state_dict(payload["actor"])

@@ -53,10 +53,15 @@ from baselines.lift_residual_policy import (
     LiftResidualPolicy,
     compose_actions,
 )
-from baselines.sb3_common import parse_args, uniform_actions, write_run
+from baselines.sb3_common import (
+    lift_held_out_evaluators,
+    parse_args,
+    uniform_actions,
+    write_run,
+)
 from dataset_gen.atomic import atomic_path
 from dg16m_env.envs.objects import split_objects
-from dg16m_env.evaluators import EvaluationResult, load_benchmark_ref, make
+from dg16m_env.evaluators import EvaluationResult, load_benchmark_ref
 
 ENV_ID = "dg16m_env/DualGraspLift-v1"
 
@@ -209,6 +214,7 @@ def main() -> None:
     # --- training --------------------------------------------------------------------------
     started = time.perf_counter()
     obs, _ = envs.reset(seed=args.train_seed)
+    inputs = policy.inputs(obs)
     done = torch.zeros(n)
     episode_return = np.zeros(n)
     curve: list[dict[str, float]] = []
@@ -217,7 +223,7 @@ def main() -> None:
     for iteration in bar:
         finished_success, finished_return = [], []
         for step in range(t):
-            a_in, c_in, base_out, to_goal = policy.inputs(obs)
+            a_in, c_in, base_out, to_goal = inputs
             a_in_t, c_in_t = torch.from_numpy(a_in), torch.from_numpy(c_in)
             with torch.no_grad():
                 dist = distribution(a_in_t)
@@ -228,6 +234,7 @@ def main() -> None:
             dones[step] = done
             action = compose_actions(base_out, residual.numpy(), to_goal)
             obs, reward, terminated, truncated, info = envs.step(action)
+            inputs = policy.inputs(obs)
             timesteps += n
             episode_return += reward
             rewards[step] = torch.as_tensor(reward * args.reward_scale, dtype=torch.float32)
@@ -240,7 +247,7 @@ def main() -> None:
 
         # GAE; ``dones[s]`` says the episode ended before step s (its obs is a reset's)
         with torch.no_grad():
-            next_value = critic(torch.from_numpy(policy.inputs(obs)[1]))[:, 0]
+            next_value = critic(torch.from_numpy(inputs[1]))[:, 0]
             advantages = torch.zeros((t, n))
             last = torch.zeros(n)
             for s in reversed(range(t)):
@@ -303,30 +310,15 @@ def main() -> None:
 
     # --- evaluation on held-out objects -------------------------------------------------------
     started = time.perf_counter()
-    evaluator = make(
-        "policy",
-        env_id=ENV_ID,
-        n_episodes=args.eval_episodes,
-        seed=args.eval_seed,
-        env_kwargs={"object_ids": test_ids},
-        progress=True,
+    evaluator, real_evaluator = lift_held_out_evaluators(
+        ENV_ID, test_ids, args.eval_episodes, args.real_eval_episodes, args.eval_seed
     )
     results: dict[str, EvaluationResult] = {
         "bc_residual": evaluator.evaluate(policy),
         "bc_base": evaluator.evaluate(base),
         "random_actions": evaluator.evaluate(uniform_actions((14,), args.seed)),
     }
-    if args.real_eval_episodes:
-        real = load_benchmark_ref("real", lazy=True)
-        real_test = split_objects(list(real.object_ids))[1]
-        real_evaluator = make(
-            "policy",
-            env_id=ENV_ID,
-            n_episodes=args.real_eval_episodes,
-            seed=args.eval_seed,
-            env_kwargs={"benchmark": "real", "object_ids": real_test},
-            progress=True,
-        )
+    if real_evaluator is not None:
         results["bc_residual_real"] = real_evaluator.evaluate(policy)
         results["bc_base_real"] = real_evaluator.evaluate(base)
     eval_s = time.perf_counter() - started

@@ -195,3 +195,34 @@ def uniform_actions(shape: tuple[int, ...], seed: int) -> Any:
         return rng.uniform(-1.0, 1.0, size=shape).astype(np.float32)
 
     return act
+
+
+def lift_held_out_evaluators(
+    env_id: str, test_ids: list[str], episodes: int, real_episodes: int, seed: int
+) -> tuple[Any, Any]:
+    """The registered ``policy`` evaluators of a Lift baseline: ``episodes`` seeded episodes
+    (reset seeds ``seed + i``) on the procedural benchmark's held-out objects ``test_ids``, and
+    ``real_episodes`` on the real benchmark's held-out objects with the same seeds (None when
+    ``real_episodes`` is 0)."""
+    from dg16m_env.evaluators import load_benchmark_ref, make
+
+    evaluator = make(
+        "policy",
+        env_id=env_id,
+        n_episodes=episodes,
+        seed=seed,
+        env_kwargs={"object_ids": test_ids},
+        progress=True,
+    )
+    if not real_episodes:
+        return evaluator, None
+    real = load_benchmark_ref("real", lazy=True)
+    real_evaluator = make(
+        "policy",
+        env_id=env_id,
+        n_episodes=real_episodes,
+        seed=seed,
+        env_kwargs={"benchmark": "real", "object_ids": split_objects(list(real.object_ids))[1]},
+        progress=True,
+    )
+    return evaluator, real_evaluator

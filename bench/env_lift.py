@@ -240,12 +240,12 @@ VECTOR_OBJECT = "table-1000000"
 RENDER_SIZE = (240, 180)
 
 
-def _lift(**kwargs: Any) -> Any:
+def _lift(env_id: str = LIFT_ID, **kwargs: Any) -> Any:
     import gymnasium as gym
 
     import dg16m_env  # noqa: F401  (registers the environments)
 
-    return gym.make(LIFT_ID, **kwargs)
+    return gym.make(env_id, **kwargs)
 
 
 def serve_episodes() -> None:
@@ -439,12 +439,8 @@ print(json.dumps({"import_s": t1 - t0, "make_s": t2 - t1, "reset_s": t3 - t2}))
 
 def probe_render(frames: int, benchmark: str, env_id: str = LIFT_ID) -> dict[str, Any]:
     """Seconds of the first ``rgb_array`` frame and the median of the next ones."""
-    import gymnasium as gym
-
-    import dg16m_env  # noqa: F401  (registers the environments)
-
     width, height = RENDER_SIZE
-    env = gym.make(env_id, render_mode="rgb_array", width=width, height=height, benchmark=benchmark)
+    env = _lift(env_id, render_mode="rgb_array", width=width, height=height, benchmark=benchmark)
     env.action_space.seed(0)
     env.reset(seed=0)
     t0 = time.perf_counter()
@@ -584,12 +580,8 @@ def versions(episodes: int, json_path: Path | None) -> int:
     """Steps/s of ``env.step`` of ``DualGraspLift-v0`` and ``-v1`` (both with the benchmark's
     target), the same seeded random-action episodes, the versions alternating episode by
     episode in one process (the machine's load is shared), and the ratio v1 / v0."""
-    import gymnasium as gym
-
-    import dg16m_env  # noqa: F401  (registers the environments)
-
     ids = {v: f"dg16m_env/DualGraspLift-{v}" for v in ("v0", "v1")}
-    envs = {v: gym.make(env_id, target_grasp="benchmark") for v, env_id in ids.items()}
+    envs = {v: _lift(env_id, target_grasp="benchmark") for v, env_id in ids.items()}
     steps = dict.fromkeys(envs, 0)
     seconds = dict.fromkeys(envs, 0.0)
     for episode in range(episodes):
