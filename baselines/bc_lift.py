@@ -1,5 +1,5 @@
-"""Behaviour cloning with DAgger on ``dg16m_env/DualGraspLift-v1``: learn to lift from the
-state-feedback expert's demonstrations.
+"""Behaviour cloning with DAgger on ``dg16m_env/DualGraspLift-v2`` (or ``-v1``: the
+demonstrations' env): learn to lift from the state-feedback expert's demonstrations.
 
 Reads top to bottom (CleanRL style): one dataclass of arguments, then the run.
 
@@ -7,7 +7,9 @@ Reads top to bottom (CleanRL style): one dataclass of arguments, then the run.
    (:func:`dg16m_env.envs.objects.split_objects`).
 2. Read the demonstrations: a Minari dataset written by ``dg16m demos collect`` (episodes of
    :class:`~dg16m_env.envs.lift_feedback_expert.FeedbackLiftExpert` on the training objects);
-   the successful episodes' (state, action) pairs are the first training set.
+   the successful episodes' (state, action) pairs are the first training set. The dataset's
+   env id (``dg16m demos collect --env-id``) is the env of the DAgger rollouts and the
+   evaluation.
 3. Behaviour cloning: an MLP on each hand's goal-frame features
    (:mod:`baselines.lift_bc_policy`), mean squared error on the motion (through tanh) plus a
    binary cross-entropy on the finger command, Adam with a one-cycle learning rate.
@@ -59,8 +61,6 @@ from dg16m_env.envs.lift_observations import STATE_SIZE
 from dg16m_env.envs.objects import split_objects
 from dg16m_env.evaluators import EvaluationResult, load_benchmark_ref
 
-ENV_ID = "dg16m_env/DualGraspLift-v1"
-
 PHASES = ("approach", "close", "lift")
 """The expert's phases (:meth:`FeedbackLiftExpert.phase`)."""
 
@@ -103,13 +103,18 @@ class Args:
     """output folder: policy, learning curve, results"""
 
 
-def load_demonstrations(source: str) -> tuple[np.ndarray, np.ndarray, int, int]:
+def load_demonstrations(source: str) -> tuple[np.ndarray, np.ndarray, int, int, str]:
     """The successful episodes' ``(N, 117)`` states and ``(N, 14)`` actions of a Minari dataset
-    of ``"state"`` observations, the number of episodes and of successful ones."""
-    from dg16m_env.envs.lift_demos import demos_metadata, open_lift_demos
+    of ``"state"`` observations, the number of episodes and of successful ones, and the env id
+    they were collected on."""
+    from dg16m_env.envs.lift_demos import ENV_IDS, demos_metadata, open_lift_demos
 
     dataset = open_lift_demos(source)
-    mode = demos_metadata(dataset).get("obs_mode")
+    metadata = demos_metadata(dataset)
+    env_id = metadata.get("env_id")
+    if env_id not in ENV_IDS:
+        raise SystemExit(f"{source}: expected demonstrations on one of {ENV_IDS}, found {env_id!r}")
+    mode = metadata.get("obs_mode")
     if mode != "state":
         raise SystemExit(f"{source}: expected demonstrations with obs_mode 'state', found {mode!r}")
     states, actions, episodes, successes = [], [], 0, 0
@@ -122,7 +127,7 @@ def load_demonstrations(source: str) -> tuple[np.ndarray, np.ndarray, int, int]:
         actions.append(np.asarray(episode.actions))
     if not states:
         raise SystemExit(f"{source}: expected successful demonstrations, found none")
-    return np.concatenate(states), np.concatenate(actions), episodes, successes
+    return np.concatenate(states), np.concatenate(actions), episodes, successes, env_id
 
 
 def training_pairs(states: np.ndarray, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -201,7 +206,7 @@ def dagger_rollouts(
 
 
 def plot_results(
-    path: Path, results: dict[str, EvaluationResult], rounds: list[dict[str, Any]]
+    path: Path, results: dict[str, EvaluationResult], rounds: list[dict[str, Any]], env_id: str
 ) -> None:
     """Each evaluated policy's success rate with its Wilson interval (bars), and the success of
     each DAgger round's rollouts on the training objects (points)."""
@@ -227,7 +232,7 @@ def plot_results(
     curve.set_ylabel("rollout success (training objects)")
     curve.set_ylim(0, 1)
     curve.set_xticks([r["round"] for r in rounds])
-    fig.suptitle("Behaviour cloning + DAgger on DualGraspLift-v1")
+    fig.suptitle(f"Behaviour cloning + DAgger on {env_id.split('/')[-1]}")
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=120)
@@ -252,15 +257,18 @@ def main() -> None:
 
     # --- behaviour cloning on the demonstrations ---------------------------------------------
     started = time.perf_counter()
-    states, actions, n_episodes, n_successes = load_demonstrations(args.demos)
-    print(f"{args.demos}: {n_successes} of {n_episodes} episodes succeeded: {len(states)} steps")
+    states, actions, n_episodes, n_successes, env_id = load_demonstrations(args.demos)
+    print(
+        f"{args.demos}: {n_successes} of {n_episodes} episodes on {env_id} succeeded: "
+        f"{len(states)} steps"
+    )
     x, y = training_pairs(states, actions)
     policy, loss = train(x, y, args)
     rounds = [{"round": 0, "steps": len(states), "loss": loss, "rollout_success": None}]
     print(f"behaviour cloning: loss {loss:.4f}")
 
     # --- DAgger on the training objects -------------------------------------------------------
-    env = gym.make(ENV_ID, object_ids=train_ids)
+    env = gym.make(env_id, object_ids=train_ids)
     for i in range(args.dagger_rounds):
         beta = args.dagger_beta * 0.5**i
         first = args.dagger_seed + i * args.dagger_episodes
@@ -287,7 +295,7 @@ def main() -> None:
 
     started = time.perf_counter()
     evaluator, real_evaluator = lift_held_out_evaluators(
-        ENV_ID, test_ids, args.eval_episodes, args.real_eval_episodes, args.eval_seed
+        env_id, test_ids, args.eval_episodes, args.real_eval_episodes, args.eval_seed
     )
     results: dict[str, EvaluationResult] = {
         "bc_dagger": evaluator.evaluate(policy),
@@ -300,12 +308,12 @@ def main() -> None:
     eval_s = time.perf_counter() - started
 
     # --- picture and results ------------------------------------------------------------
-    plot_results(args.out / "success_rates.png", results, rounds)
+    plot_results(args.out / "success_rates.png", results, rounds, env_id)
     write_run(
         args.out / "results.json",
         args,
         results,
-        env_id=ENV_ID,
+        env_id=env_id,
         demonstrations={"dataset": args.demos, "episodes": n_episodes, "successes": n_successes},
         rounds=rounds,
         train_objects=len(train_ids),

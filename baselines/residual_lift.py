@@ -1,5 +1,6 @@
-"""Residual PPO on ``dg16m_env/DualGraspLift-v1``: fine-tune a behaviour-cloned policy with the
-v1 reward, by learning a correction on top of it.
+"""Residual PPO on ``dg16m_env/DualGraspLift-v2`` (``--env-id``: or ``-v1``): fine-tune a
+behaviour-cloned policy with the v1 reward (v2's is the same), by learning a correction on top
+of it.
 
 Reads top to bottom (CleanRL style, after ``ppo_continuous_action.py``): one dataclass of
 arguments, then the run.
@@ -60,16 +61,17 @@ from baselines.sb3_common import (
     write_run,
 )
 from dataset_gen.atomic import atomic_path
+from dg16m_env.envs.lift_demos import ENV_IDS
 from dg16m_env.envs.objects import split_objects
 from dg16m_env.evaluators import EvaluationResult, load_benchmark_ref
-
-ENV_ID = "dg16m_env/DualGraspLift-v1"
 
 
 @dataclass
 class Args:
     seed: int = 0
     """seed of the networks, the exploration noise, the minibatches and the random baseline"""
+    env_id: str = "dg16m_env/DualGraspLift-v2"
+    """the environment: dg16m_env/DualGraspLift-v2 or -v1 (the base policy's, best)"""
     base_policy: str = "runs/bc_lift/policy.pt"
     """the behaviour-cloned policy to fine-tune (policy.pt written by baselines.bc_lift)"""
     total_timesteps: int = 300_000
@@ -171,6 +173,8 @@ def main() -> None:
     import torch
     from tqdm import tqdm
 
+    if args.env_id not in ENV_IDS:
+        raise SystemExit(f"--env-id: expected one of {ENV_IDS}, found {args.env_id!r}")
     for name in ("total_timesteps", "num_envs", "num_steps", "num_minibatches", "update_epochs"):
         if getattr(args, name) < 1:
             raise SystemExit(
@@ -191,7 +195,7 @@ def main() -> None:
     ref = load_benchmark_ref()
     train_ids, test_ids = split_objects(list(ref.object_ids))
     envs = gym.make_vec(
-        ENV_ID,
+        args.env_id,
         num_envs=args.num_envs,
         vectorization_mode="sync",
         vector_kwargs={"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP},
@@ -311,7 +315,7 @@ def main() -> None:
     # --- evaluation on held-out objects -------------------------------------------------------
     started = time.perf_counter()
     evaluator, real_evaluator = lift_held_out_evaluators(
-        ENV_ID, test_ids, args.eval_episodes, args.real_eval_episodes, args.eval_seed
+        args.env_id, test_ids, args.eval_episodes, args.real_eval_episodes, args.eval_seed
     )
     results: dict[str, EvaluationResult] = {
         "bc_residual": evaluator.evaluate(policy),
@@ -329,7 +333,7 @@ def main() -> None:
         args.out / "results.json",
         args,
         results,
-        env_id=ENV_ID,
+        env_id=args.env_id,
         curve=curve,
         train_objects=len(train_ids),
         test_objects=len(test_ids),

@@ -44,8 +44,15 @@ subprocesses whose ``PYTHONPATH`` picks the tree, the two trees alternating ``--
     .venv/bin/python bench/env_lift.py --speed --reference /tmp/lift_ref --rounds 5 --json x.json
     .venv/bin/python bench/env_lift.py --speed --only render          # the frames only
 
-``--versions 6``: steps/s of ``DualGraspLift-v0`` and ``-v1`` on the same seeded random-action
-episodes, alternating in one process, and the ratio v1 / v0.
+``--versions 6``: steps/s of ``DualGraspLift-v0``, ``-v1`` and ``-v2`` on the same seeded
+random-action episodes, taking turns in one process, and the ratios to v0.
+
+``--vector ENV_ID``: the 2-worker async vector env of the ``--speed`` probe for one env id of
+this tree, left to the scheduler and pinned; for ``dg16m_env/DualGraspLift-v2`` also its
+``LiftVectorEnv`` (``--num-envs``, default 16; 1 worker, 2 workers, 2 pinned) against one env.
+
+    .venv/bin/python bench/env_lift.py --versions 6
+    .venv/bin/python bench/env_lift.py --vector dg16m_env/DualGraspLift-v2 --steps 3200
 
 ``--timesteps 0.002,0.005,0.01`` (a study for a later version, not what v0 does): the scripted
 expert with the benchmark's target on the same seeded episodes with the scene's timestep
@@ -70,13 +77,12 @@ import contextlib
 import functools
 import hashlib
 import json
-import math
 import subprocess
 import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -85,7 +91,7 @@ import mujoco
 import numpy as np
 
 from dataset_gen.atomic import write_json_atomic
-from dg16m_env.envs.dual_grasp_lift import ACTION_SIZE, CONTROL_HZ, DualGraspLiftEnv
+from dg16m_env.envs.dual_grasp_lift import ACTION_SIZE, DualGraspLiftEnv
 from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
 from dg16m_env.envs.objects import BenchmarkObjects
 
@@ -361,26 +367,78 @@ def _pinned(make: Callable[[], Any], cpu: int) -> Any:
     return make()
 
 
-def probe_vector(steps: int, seed: int) -> dict[str, Any]:
+def _single_env_rate(make: Callable[[], Any], steps: int, seed: int) -> float:
+    """Steps/s of ``steps`` random-action steps (autoreset) of one ``make()`` env, after 20
+    steps of warm-up (the object is compiled at the first reset)."""
+    env = make()
+    env.action_space.seed(seed)
+    env.reset(seed=seed)
+    for _ in range(20):
+        env.step(env.action_space.sample())
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            env.reset()
+    rate = steps / (time.perf_counter() - t0)
+    env.close()
+    return rate
+
+
+def probe_batched(steps: int, seed: int, env_id: str, num_envs: int = 8) -> dict[str, Any]:
+    """Total steps/s of ``LiftVectorEnv`` (``num_envs`` environments, one message per worker
+    per step) with 1 worker, 2 workers and 2 pinned workers, against one env in this process
+    (same object, random actions, autoreset); 3 alternating rounds, medians."""
+    from dg16m_env.envs.lift_vector import LiftVectorEnv
+
+    def batched(workers: int, pin: bool) -> float:
+        envs = LiftVectorEnv(
+            num_envs, workers=workers, pin_workers=pin, env_id=env_id, object_ids=[VECTOR_OBJECT]
+        )
+        envs.action_space.seed(seed)
+        envs.reset(seed=seed)
+        for _ in range(5):
+            envs.step(envs.action_space.sample())
+        t0 = time.perf_counter()
+        rounds = max(1, steps // num_envs)
+        for _ in range(rounds):
+            envs.step(envs.action_space.sample())
+        rate = rounds * num_envs / (time.perf_counter() - t0)
+        envs.close()
+        return rate
+
+    runs: dict[str, list[float]] = {k: [] for k in ("single", "w1", "w2", "w2_pinned")}
+    for _ in range(3):
+        runs["single"].append(
+            _single_env_rate(
+                functools.partial(_lift, env_id, object_ids=[VECTOR_OBJECT]), steps, seed
+            )
+        )
+        runs["w1"].append(batched(1, False))
+        runs["w2"].append(batched(2, False))
+        runs["w2_pinned"].append(batched(2, True))
+    r = {k: np.array(v) for k, v in runs.items()}
+    return {
+        "num_envs": num_envs,
+        "single_steps_per_s": float(np.median(r["single"])),
+        "w1_steps_per_s": float(np.median(r["w1"])),
+        "w2_steps_per_s": float(np.median(r["w2"])),
+        "w2_pinned_steps_per_s": float(np.median(r["w2_pinned"])),
+        "w2_over_single": float(np.median(r["w2"] / r["single"])),
+        "w2_pinned_over_single": float(np.median(r["w2_pinned"] / r["single"])),
+        "w2_over_w1": float(np.median(r["w2"] / r["w1"])),
+        "runs": runs,
+    }
+
+
+def probe_vector(steps: int, seed: int, env_id: str = LIFT_ID) -> dict[str, Any]:
     """Total steps/s of a 2-worker async vector env against one env (same tree, same object,
     random actions, autoreset in both), with the workers left to the scheduler and pinned to
     one core each; and the same for :class:`_Burn` at the step time just measured. The
     variants alternate (3 rounds), so that each ratio's runs see the same machine."""
 
     def one(make: Callable[[], Any]) -> float:
-        env = make()
-        env.action_space.seed(seed)
-        env.reset(seed=seed)
-        for _ in range(20):  # warm-up (the object is compiled at the first reset)
-            env.step(env.action_space.sample())
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-            if terminated or truncated:
-                env.reset()
-        rate = steps / (time.perf_counter() - t0)
-        env.close()
-        return rate
+        return _single_env_rate(make, steps, seed)
 
     def vec(make: Callable[[], Any], pin: bool) -> float:
         fns = [functools.partial(_pinned, make, k) if pin else make for k in range(2)]
@@ -396,7 +454,7 @@ def probe_vector(steps: int, seed: int) -> dict[str, Any]:
         env.close()
         return rate
 
-    lift = functools.partial(_lift, object_ids=[VECTOR_OBJECT])
+    lift = functools.partial(_lift, env_id, object_ids=[VECTOR_OBJECT])
     keys = ("single", "vector", "pinned", "burn_single", "burn_vector", "burn_pinned")
     runs: dict[str, list[float]] = {k: [] for k in keys}
     pin = hasattr(os, "sched_setaffinity") and (os.cpu_count() or 1) >= 2
@@ -577,15 +635,16 @@ def speed(reference: Path | None, rounds: int, json_path: Path | None, only: str
 
 
 def versions(episodes: int, json_path: Path | None) -> int:
-    """Steps/s of ``env.step`` of ``DualGraspLift-v0`` and ``-v1`` (both with the benchmark's
-    target), the same seeded random-action episodes, the versions alternating episode by
-    episode in one process (the machine's load is shared), and the ratio v1 / v0."""
-    ids = {v: f"dg16m_env/DualGraspLift-{v}" for v in ("v0", "v1")}
+    """Steps/s of ``env.step`` of ``DualGraspLift-v0``, ``-v1`` and ``-v2`` (all with the
+    benchmark's target), the same seeded random-action episodes, the versions taking turns
+    episode by episode in one process (the machine's load is shared), and the ratios to v0."""
+    ids = {v: f"dg16m_env/DualGraspLift-{v}" for v in ("v0", "v1", "v2")}
     envs = {v: _lift(env_id, target_grasp="benchmark") for v, env_id in ids.items()}
     steps = dict.fromkeys(envs, 0)
     seconds = dict.fromkeys(envs, 0.0)
     for episode in range(episodes):
-        order = list(envs) if episode % 2 == 0 else list(envs)[::-1]
+        shift = episode % len(envs)
+        order = list(envs)[shift:] + list(envs)[:shift]
         for v in order:
             rng = np.random.default_rng(episode)
             envs[v].reset(seed=episode)
@@ -600,7 +659,7 @@ def versions(episodes: int, json_path: Path | None) -> int:
     rates = {v: steps[v] / seconds[v] for v in envs}
     for v in envs:
         print(f"{ids[v]:30s} {steps[v]:6d} steps {rates[v]:8.0f} steps/s")
-    print(f"v1 / v0: {rates['v1'] / rates['v0']:.2f}")
+    print(f"v1 / v0: {rates['v1'] / rates['v0']:.2f}   v2 / v0: {rates['v2'] / rates['v0']:.2f}")
     if json_path:
         write_json_atomic(json_path, {"steps": steps, "steps_per_s": rates})
     return 0
@@ -614,14 +673,10 @@ def versions(episodes: int, json_path: Path | None) -> int:
 def _retimed(timestep: float) -> DualGraspLiftEnv:
     """A v0 environment (target grasp from the benchmark) whose scene is compiled with another
     timestep: the control rate stays 20 Hz, the substeps per control step follow."""
+    from dg16m_env.envs.dual_grasp_lift_v2 import use_timestep
+
     env = DualGraspLiftEnv(target_grasp="benchmark")
-    env.scene_parameters = replace(env.scene_parameters, timestep=timestep)
-    env.timestep = timestep
-    env.substeps = max(1, round(1.0 / (CONTROL_HZ * timestep)))
-    env.control_dt = env.substeps * timestep
-    env._fractions = np.arange(1, env.substeps + 1, dtype=np.float64) / env.substeps
-    env._fraction_column = env._fractions[:, None, None]
-    env.hold_steps = math.ceil(env.hold_time / env.control_dt - 1e-9)
+    use_timestep(env, timestep)
     return env
 
 
@@ -711,10 +766,19 @@ def main(argv: list[str] | None = None) -> int:
         "--only", default="", help="--speed: only the measurements whose label contains this"
     )
     parser.add_argument(
-        "--versions", type=int, metavar="EPISODES", help="v1 against v0: random-action episodes"
+        "--versions", type=int, metavar="EPISODES", help="v1, v2 against v0: random-action episodes"
     )
     parser.add_argument(
         "--timesteps", help="study: comma-separated scene timesteps (s), scripted episodes"
+    )
+    parser.add_argument(
+        "--vector",
+        metavar="ENV_ID",
+        help="2-worker async vector env of ENV_ID against one env (this tree only)",
+    )
+    parser.add_argument("--steps", type=int, default=2000, help="--vector: steps per run")
+    parser.add_argument(
+        "--num-envs", type=int, default=16, help="--vector: LiftVectorEnv's environments"
     )
     parser.add_argument("--probe", help=argparse.SUPPRESS)  # one measurement, in a subprocess
     parser.add_argument("--probe-args", default="{}", help=argparse.SUPPRESS)
@@ -729,6 +793,28 @@ def main(argv: list[str] | None = None) -> int:
         return speed(args.reference, args.rounds, args.json, args.only)
     if args.versions:
         return versions(args.versions, args.json)
+    if args.vector:
+        result = probe_vector(args.steps, args.seed, args.vector)
+        print(
+            f"{args.vector}, AsyncVectorEnv: one env {result['single_steps_per_s']:.0f} steps/s, "
+            f"2 workers {result['vector_steps_per_s']:.0f}: {result['ratio']:.2f}x left to the "
+            f"scheduler, {result['pinned_ratio']:.2f}x pinned; an env that only burns the same "
+            f"CPU time: {result['burn_ratio']:.2f}x, {result['burn_pinned_ratio']:.2f}x pinned"
+        )
+        if args.vector == "dg16m_env/DualGraspLift-v2":
+            batched = probe_batched(args.steps, args.seed, args.vector, args.num_envs)
+            result["batched"] = batched
+            print(
+                f"{args.vector}, LiftVectorEnv ({batched['num_envs']} envs): one env in this "
+                f"process {batched['single_steps_per_s']:.0f} steps/s; 1 worker "
+                f"{batched['w1_steps_per_s']:.0f}, 2 workers {batched['w2_steps_per_s']:.0f} "
+                f"({batched['w2_over_single']:.2f}x one env, {batched['w2_over_w1']:.2f}x 1 "
+                f"worker), 2 pinned {batched['w2_pinned_steps_per_s']:.0f} "
+                f"({batched['w2_pinned_over_single']:.2f}x one env)"
+            )
+        if args.json:
+            write_json_atomic(args.json, result)
+        return 0
     if args.timesteps:
         steps = [float(x) for x in args.timesteps.split(",")]
         return timestep_study(steps, args.episodes, args.json)

@@ -22,6 +22,7 @@ from dataset_gen.cli import main  # noqa: E402
 from dg16m_env.envs.lift_demos import (  # noqa: E402
     DEFAULT_DATASET_ID,
     ENV_ID,
+    ENV_IDS,
     METADATA_KEY,
     LiftDemosError,
     collect_lift_demos,
@@ -194,12 +195,25 @@ def test_the_worker_count_does_not_change_the_data(tmp_path: Path) -> None:
         ({"objects": "tarin"}, "objects: expected one of"),
         ({"env_kwargs": {"obs_mode": "state"}}, "env_kwargs: expected none of"),
         ({"workers": 0}, "workers: expected an integer >= 1"),
+        ({"env_id": "dg16m_env/DualGraspLift-v0"}, "env_id: expected one of"),
     ],
 )
 def test_bad_arguments_are_refused(tmp_path: Path, kwargs: dict, message: str) -> None:
     with pytest.raises(LiftDemosError, match=message):
         collect_lift_demos(tmp_path, episodes=1, progress=False, **kwargs)
     assert not (tmp_path / DEFAULT_DATASET_ID).exists()
+
+
+def test_v1_demonstrations_are_collected_and_replayed_on_v1(tmp_path: Path) -> None:
+    """``env_id`` picks the version; the dataset records it and a replay remakes that env."""
+    report = collect_lift_demos(
+        tmp_path, episodes=2, env_id=ENV_IDS[0], env_kwargs=SHORT, progress=False
+    )
+    dataset = open_lift_demos(report.path)
+    assert dataset.spec.env_spec.id == ENV_IDS[0] == "dg16m_env/DualGraspLift-v1"
+    assert demos_metadata(dataset)["env_id"] == ENV_IDS[0]
+    assert replay_lift_demo(dataset, 1).identical
+    assert ENV_ID == ENV_IDS[-1] == "dg16m_env/DualGraspLift-v2"
 
 
 def test_command_line(
@@ -216,6 +230,7 @@ def test_command_line(
     assert main(["demos", "info", folder]) == 0
     text = capsys.readouterr().out
     assert "episodes    2, 40 steps" in text
+    assert "on dg16m_env/DualGraspLift-v2" in text  # the default env: the latest version
     assert "Wilson 95%" in text
 
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(out))

@@ -1,4 +1,5 @@
-"""DualGraspLift-v1 (:mod:`dg16m_env.envs.dual_grasp_lift_v1`): success is the best return in
+"""DualGraspLift-v1 (:mod:`dg16m_env.envs.dual_grasp_lift_v1`) and v2 (the same task on 5 ms
+physics steps, :mod:`dg16m_env.envs.dual_grasp_lift_v2`): success is the best return in
 every reward mode (seed for seed against a policy that lifts only 5 cm and hovers), the reward
 modes agree with each other, ``step()`` after the end is refused, each observation mode passes
 Gymnasium's checker, and a restored state gives the same steps bit for bit."""
@@ -20,6 +21,7 @@ from dg16m_env.envs.lift_observations import STATE_LAYOUT, STATE_SLICES
 from dg16m_env.envs.lift_reward import MAX_STEP_REWARD, REWARD_MODES
 
 LIFT_V1 = "dg16m_env/DualGraspLift-v1"
+LIFT_IDS = (LIFT_V1, "dg16m_env/DualGraspLift-v2")
 SEEDS = (42, 3)
 """Procedural-benchmark episodes the feedback expert completes (checked in the test)."""
 
@@ -42,12 +44,12 @@ def run(env: gym.Env, policy: Any, seed: int) -> tuple[float, dict[str, Any], in
             return total, info, steps
 
 
-@pytest.fixture(scope="module")
-def episodes() -> dict[str, dict[int, dict[str, tuple[float, dict[str, Any], int]]]]:
-    """Per reward mode, per seed: the expert's and the hover policy's episodes."""
+@pytest.fixture(scope="module", params=LIFT_IDS)
+def episodes(request) -> dict[str, dict[int, dict[str, tuple[float, dict[str, Any], int]]]]:
+    """Per reward mode, per seed: the expert's and the hover policy's episodes (per version)."""
     out: dict[str, dict[int, dict[str, tuple[float, dict[str, Any], int]]]] = {}
     for mode in REWARD_MODES:
-        env = gym.make(LIFT_V1, reward_mode=mode)
+        env = gym.make(request.param, reward_mode=mode)
         out[mode] = {
             seed: {
                 "expert": run(env, FeedbackLiftExpert(), seed),
@@ -95,8 +97,9 @@ def test_the_success_step_pays_the_bound(episodes) -> None:
         assert 0.0 <= hover_total <= MAX_STEP_REWARD * 200
 
 
-def test_dense_terms_are_bounded_per_step() -> None:
-    env = gym.make(LIFT_V1)
+@pytest.mark.parametrize("env_id", LIFT_IDS)
+def test_dense_terms_are_bounded_per_step(env_id: str) -> None:
+    env = gym.make(env_id)
     obs, info = env.reset(seed=5)
     assert info["fail"] is False
     assert info["elapsed_steps"] == 0
@@ -114,8 +117,9 @@ def test_dense_terms_are_bounded_per_step() -> None:
     env.close()
 
 
-def test_step_after_the_end_is_refused() -> None:
-    env = gym.make(LIFT_V1, episode_steps=3)
+@pytest.mark.parametrize("env_id", LIFT_IDS)
+def test_step_after_the_end_is_refused(env_id: str) -> None:
+    env = gym.make(env_id, episode_steps=3)
     obs, _ = env.reset(seed=0)
     action = np.zeros(14, dtype=np.float32)
     for _ in range(3):
@@ -130,9 +134,10 @@ def test_step_after_the_end_is_refused() -> None:
     env.close()
 
 
+@pytest.mark.parametrize("env_id", LIFT_IDS)
 @pytest.mark.parametrize("obs_mode", ["state", "state_dict", "pointcloud"])
-def test_each_observation_mode_passes_check_env(obs_mode: str) -> None:
-    env = gym.make(LIFT_V1, obs_mode=obs_mode, n_points=64)
+def test_each_observation_mode_passes_check_env(env_id: str, obs_mode: str) -> None:
+    env = gym.make(env_id, obs_mode=obs_mode, n_points=64)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(env.unwrapped, skip_render_check=True)
@@ -157,8 +162,9 @@ def test_wrong_modes_are_refused() -> None:
         DualGraspLiftV1Env(obs_mode="rgbd")
 
 
-def test_a_restored_state_gives_the_same_steps() -> None:
-    env = gym.make(LIFT_V1)
+@pytest.mark.parametrize("env_id", LIFT_IDS)
+def test_a_restored_state_gives_the_same_steps(env_id: str) -> None:
+    env = gym.make(env_id)
     inner = env.unwrapped
     rng = np.random.default_rng(3)
     env.reset(seed=11)

@@ -1,9 +1,9 @@
 """``dg16m demos``: demonstrations of the Lift expert in Farama's Minari format.
 
 ``collect`` runs :class:`~dg16m_env.envs.lift_feedback_expert.FeedbackLiftExpert` on
-``dg16m_env/DualGraspLift-v1`` and writes a Minari dataset; ``replay`` re-runs recorded
-episodes and checks them step for step; ``info`` summarises a dataset. The logic lives in
-:mod:`dg16m_env.envs.lift_demos`; this module parses and prints. Building the parser imports
+``dg16m_env/DualGraspLift-v2`` (or ``-v1``: ``--env-id``) and writes a Minari dataset;
+``replay`` re-runs recorded episodes and checks them step for step; ``info`` summarises a
+dataset. The logic lives in :mod:`dg16m_env.envs.lift_demos`; this module parses and prints. Building the parser imports
 no MuJoCo, Minari or h5py: the handlers import them when they run.
 """
 
@@ -21,6 +21,7 @@ from dg16m_env.envs.lift_demos import (
     DEFAULT_DATASET_ID,
     DEMO_OBS_MODES,
     ENV_ID,
+    ENV_IDS,
     OBJECT_SETS,
 )
 
@@ -75,7 +76,7 @@ def register(subparsers: Any) -> None:
         "demos",
         "Demonstrations of the Lift expert as a Minari dataset: collect, replay, info.",
         DEMOS_EXAMPLES,
-        description="Demonstrations of FeedbackLiftExpert on dg16m_env/DualGraspLift-v1 in "
+        description="Demonstrations of FeedbackLiftExpert on dg16m_env/DualGraspLift-v2 (or -v1) in "
         "Farama's Minari format (needs the demos extra: pip install -e '.[demos]'). Generated "
         "by command, never shipped nor downloaded.",
     )
@@ -85,7 +86,7 @@ def register(subparsers: Any) -> None:
         "collect",
         "Run the expert and write its episodes (all of them) as a Minari dataset.",
         COLLECT_EXAMPLES,
-        description=f"Run FeedbackLiftExpert on {ENV_ID} for N episodes and write them as the "
+        description="Run FeedbackLiftExpert on a DualGraspLift env for N episodes and write them as the "
         "Minari dataset ROOT/ID (HDF5). Episode i resets with seed S + i and the env draws its "
         "object from the chosen objects with that seed, so the data are the same bytes for any "
         "--workers. Every episode is kept, failed ones too; each records its seed, object, "
@@ -150,6 +151,12 @@ def _collect_arguments(collect: argparse.ArgumentParser) -> None:
         help=f"(namespace/)name-vN (default: {DEFAULT_DATASET_ID})",
     )
     collect.add_argument(
+        "--env-id",
+        choices=ENV_IDS,
+        default=ENV_ID,
+        help=f"the environment (default: {ENV_ID}, the latest version)",
+    )
+    collect.add_argument(
         "--benchmark",
         default="procedural",
         metavar="B",
@@ -200,6 +207,7 @@ def _collect(args: argparse.Namespace) -> int:
         args.out,
         episodes=args.episodes,
         dataset_id=args.dataset_id,
+        env_id=args.env_id,
         benchmark=args.benchmark,
         objects=args.objects,
         seed=args.seed,

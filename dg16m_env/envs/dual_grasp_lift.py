@@ -189,7 +189,9 @@ Version history
   reward modes in which success is the best return (v0's dense reward pays a policy that lifts
   5 cm and hovers more than one that succeeds), observation modes with relative features,
   ``info["fail"]``, ``step()`` after the end refused, state save and restore, a target grasp by
-  default. v0 stays registered unchanged (``gym.make`` notes that v1 exists).
+  default. v0 stays registered unchanged (``gym.make`` notes that a newer version exists).
+* v2 (2026-12-05, :mod:`dg16m_env.envs.dual_grasp_lift_v2`): v1's task on 5 ms physics steps,
+  with compiled step arithmetic: about three times v0's steps per second.
 """
 
 from __future__ import annotations
@@ -241,6 +243,7 @@ from dg16m_env.physics.lift_scene import (
     lowest_hand_z,
     part_points,
     stable_rest_poses,
+    step_hand_targets,
 )
 from dg16m_env.physics.scene import quat_from_matrix, quat_to_matrix
 
@@ -276,11 +279,6 @@ SETTLE_TIME = 0.2
 
 TARGET_MIN_P = 0.5
 """Benchmark target rows need ``p("full") >=`` this (and a force-closure pass)."""
-
-_MOCAP_STATE = int(mujoco.mjtState.mjSTATE_MOCAP_POS | mujoco.mjtState.mjSTATE_MOCAP_QUAT)
-"""The hand targets of a substep, one ``mj_setState`` row: both flanges, then both quaternions."""
-_BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
-_NO_SENSORS = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 
 
 # --------------------------------------------------------------------------------------------
@@ -639,27 +637,8 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
         approach[..., 2] = 2.0 * (y * z + w * x)
         flanges = path - scene.gripper.contact_depth * approach
         targets = np.concatenate([flanges.reshape(n, 6), quats.reshape(n, 8)], axis=1)
-        badqacc = data.warning[_BADQACC]
-        warnings_before = int(badqacc.number)
-        # The sensors (contact counts, read after the step) only at the last substep: they
-        # feed nothing back into the physics (no sensor history in this scene).
-        flags = model.opt.disableflags
-        model.opt.disableflags = flags | _NO_SENSORS
-        try:
-            for row in targets[:-1]:
-                mujoco.mj_setState(model, data, row, _MOCAP_STATE)
-                mujoco.mj_step(model, data)
-        finally:
-            model.opt.disableflags = flags
-        mujoco.mj_setState(model, data, targets[-1], _MOCAP_STATE)
-        mujoco.mj_step(model, data)
+        unstable = step_hand_targets(model, data, targets)
         self._target_pos, self._target_rot, self._target_quat = centres, rotations, final
-
-        unstable = (
-            int(badqacc.number) > warnings_before
-            or not np.isfinite(data.qpos).all()
-            or not np.isfinite(data.qvel).all()
-        )
         return self._transition(values, unstable)
 
     def _measure(self, unstable: bool) -> LiftStepMeasures:

@@ -402,3 +402,34 @@ def lowest_hand_z(poses: np.ndarray, points: np.ndarray) -> np.ndarray:
     poses = np.asarray(poses, dtype=np.float64)
     z = np.einsum("...j,pj->...p", poses[..., 2, :3], points) + poses[..., 2, 3, None]
     return z.min(axis=-1)
+
+
+_MOCAP_STATE = int(mujoco.mjtState.mjSTATE_MOCAP_POS | mujoco.mjtState.mjSTATE_MOCAP_QUAT)
+_BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
+_NO_SENSORS = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+
+
+def step_hand_targets(model: mujoco.MjModel, data: mujoco.MjData, targets: np.ndarray) -> bool:
+    """One physics step per row of ``targets`` ((n, 14): both hands' target flange positions
+    (m), then their quaternions: the ``mjSTATE_MOCAP_POS | mjSTATE_MOCAP_QUAT`` state of the
+    scene's two mocap bodies), the row set before its step. The sensors (contact counts) are
+    computed at the last step only: they feed nothing back into the physics (the scene has no
+    sensor history). Returns whether the simulation went unstable on the way (MuJoCo's
+    bad-acceleration warning, or a position or velocity that is not finite)."""
+    badqacc = data.warning[_BADQACC]
+    warnings_before = int(badqacc.number)
+    flags = model.opt.disableflags
+    model.opt.disableflags = flags | _NO_SENSORS
+    try:
+        for row in targets[:-1]:
+            mujoco.mj_setState(model, data, row, _MOCAP_STATE)
+            mujoco.mj_step(model, data)
+    finally:
+        model.opt.disableflags = flags
+    mujoco.mj_setState(model, data, targets[-1], _MOCAP_STATE)
+    mujoco.mj_step(model, data)
+    return (
+        int(badqacc.number) > warnings_before
+        or not np.isfinite(data.qpos).all()
+        or not np.isfinite(data.qvel).all()
+    )

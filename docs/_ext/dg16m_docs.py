@@ -75,6 +75,12 @@ PICTURES = {
         "episode of the scripted policy on ``tub-1000013``, seed 0, which reaches, closes, "
         "lifts the tub 10 cm and holds it for 1 s.",
     ),
+    "DualGraspLift-v2": (
+        "lift_episode.gif",
+        "The task v2 keeps from v0 and v1 (actions and success rule; v2 steps the physics at "
+        "5 ms): the v0 episode of the scripted policy on ``tub-1000013``, seed 0, which "
+        "reaches, closes, lifts the tub 10 cm and holds it for 1 s.",
+    ),
 }
 
 #: Display widths of pictures shown smaller than the content column (their own size).
