@@ -91,7 +91,7 @@ import mujoco
 import numpy as np
 
 from dataset_gen.atomic import write_json_atomic
-from dg16m_env.envs.dual_grasp_lift import ACTION_SIZE, DualGraspLiftEnv
+from dg16m_env.envs.dual_grasp_lift import ACTION_SIZE, DualGraspLiftEnv, use_timestep
 from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
 from dg16m_env.envs.objects import BenchmarkObjects
 
@@ -673,8 +673,6 @@ def versions(episodes: int, json_path: Path | None) -> int:
 def _retimed(timestep: float) -> DualGraspLiftEnv:
     """A v0 environment (target grasp from the benchmark) whose scene is compiled with another
     timestep: the control rate stays 20 Hz, the substeps per control step follow."""
-    from dg16m_env.envs.dual_grasp_lift_v2 import use_timestep
-
     env = DualGraspLiftEnv(target_grasp="benchmark")
     use_timestep(env, timestep)
     return env

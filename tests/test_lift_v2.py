@@ -17,6 +17,7 @@ from dg16m_env.envs.dual_grasp_lift_v2 import PHYSICS_TIMESTEP, DualGraspLiftV2E
 from dg16m_env.envs.lift_feedback_expert import FeedbackLiftExpert
 from dg16m_env.envs.lift_kernels import STATE_OFFSETS, STATE_PARTS
 from dg16m_env.envs.lift_observations import STATE_LAYOUT, STATE_SLICES
+from dg16m_env.physics.lift_scene import step_hand_targets
 
 LIFT_V2 = "dg16m_env/DualGraspLift-v2"
 TOLERANCE = 1e-9
@@ -108,20 +109,27 @@ def test_observation_and_measures_agree_with_the_numpy_formulas(target_grasp) ->
 
 def test_substep_targets_agree_with_the_numpy_formulas() -> None:
     """The hands' targets of a step, from the same state: v2's compiled path against v0's numpy
-    step (both at 10 substeps): the same commanded poses and the same physics within rounding."""
+    formulas (both at 10 substeps): the same substep rows and commanded poses, and the same
+    physics after the step, within rounding."""
     env = DualGraspLiftV2Env()
     env.reset(seed=5)
     rng = np.random.default_rng(2)
     for _ in range(40):
         action = rng.uniform(-1, 1, 14).astype(np.float32)
+        values = env._check_action(action)
         state = env.get_state()
+        formulas = [a.copy() for a in DualGraspLiftEnv._hand_targets(env, values)]
+        compiled = [a.copy() for a in env._hand_targets(values)]
+        for a, b in zip(compiled, formulas, strict=True):  # rows, centres, rotations, quats
+            assert a.shape == b.shape
+            assert np.abs(a - b).max() <= TOLERANCE
         env.step(action)
-        compiled = (env._target_pos.copy(), env._target_rot.copy(), env._target_quat.copy())
         compiled_qpos = env._current.data.qpos.copy()
         env.set_state(state)
-        DualGraspLiftEnv.step(env, action)  # v0's numpy step, then v1's transition
-        assert np.abs(compiled[0] - env._target_pos).max() <= TOLERANCE
-        assert np.abs(compiled[1] - env._target_rot).max() <= TOLERANCE
-        assert np.abs(compiled[2] - env._target_quat).max() <= TOLERANCE
-        assert np.abs(compiled_qpos - env._current.data.qpos).max() <= 1e-6
+        scene, data = env._current.scene, env._current.data
+        data.ctrl[scene.squeeze_actuators] = values[6::7] * scene.params.squeeze_force
+        step_hand_targets(scene.model, data, formulas[0])
+        assert np.abs(compiled_qpos - data.qpos).max() <= 1e-6
+        env.set_state(state)
+        env.step(action)
     env.close()

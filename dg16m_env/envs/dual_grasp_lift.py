@@ -200,7 +200,7 @@ import math
 import os
 from collections import OrderedDict
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
 import gymnasium
@@ -218,8 +218,7 @@ from dg16m_env.envs.lift_measures import (  # the three constants: their old imp
     TERMINATIONS,  # noqa: F401
     Hold,
     LiftStepMeasures,
-    termination_of,
-    update_hold,
+    measure_step,
 )
 from dg16m_env.envs.lift_reward import jaw_angle, reward_terms
 from dg16m_env.envs.lift_spaces import (
@@ -301,6 +300,19 @@ class _LiftObject:
     feasible: dict[int, np.ndarray] = field(default_factory=dict)  # pose -> rows above table
 
 
+def use_timestep(env: DualGraspLiftEnv, timestep: float) -> None:
+    """Make ``env`` (before its first reset: scenes are compiled then) step MuJoCo at
+    ``timestep`` (s): the control rate stays :data:`CONTROL_HZ`, the physics steps per control
+    step and the hold's length in steps follow."""
+    env.scene_parameters = replace(env.scene_parameters, timestep=timestep)
+    env.timestep = timestep
+    env.substeps = max(1, round(1.0 / (CONTROL_HZ * timestep)))
+    env.control_dt = env.substeps * timestep
+    env._fractions = np.arange(1, env.substeps + 1, dtype=np.float64) / env.substeps
+    env._fraction_column = env._fractions[:, None, None]  # (n, 1, 1), for the substeps
+    env.hold_steps = math.ceil(env.hold_time / env.control_dt - 1e-9)
+
+
 class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
     """Two floating Panda hands lift a benchmark object from a table (see the module docstring:
     spaces, rewards, success, randomisations, arguments)."""
@@ -340,12 +352,7 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
         self.scene_parameters = parameters.scene
         self.gravity = float(parameters.protocol.gravity)
         self.max_slip = float(parameters.protocol.max_displacement)
-        self.timestep = float(parameters.scene.timestep)
-        self.substeps = max(1, round(1.0 / (CONTROL_HZ * self.timestep)))
-        self.control_dt = self.substeps * self.timestep
-        self._fractions = np.arange(1, self.substeps + 1, dtype=np.float64) / self.substeps
-        self._fraction_column = self._fractions[:, None, None]  # (n, 1, 1), for the substeps
-        self.hold_steps = math.ceil(self.hold_time / self.control_dt - 1e-9)
+        use_timestep(self, float(parameters.scene.timestep))
         self._hand_points = hand_points()
         self._clip_points: tuple[float, np.ndarray] | None = None  # depth, hand points - depth y
         self._bench = self.objects.ref.benchmark
@@ -578,17 +585,22 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
     def _check_action(self, action: Any) -> np.ndarray:
         return check_lift_action(action, self.action_space)
 
+    def _clip_local_points(self) -> np.ndarray:
+        """(m, 3) the hand points relative to the grasp centre, hand frame (``p - depth * y``):
+        the lowest hand point of rotation ``R`` is the least ``R[2] @`` of them."""
+        assert self._current is not None
+        depth = self._current.scene.gripper.contact_depth
+        if self._clip_points is None or self._clip_points[0] != depth:
+            self._clip_points = (depth, self._hand_points - np.array([0.0, depth, 0.0]))
+        return self._clip_points[1]
+
     def _clip_command(self, centres: np.ndarray, rotations: np.ndarray) -> np.ndarray:
         """Grasp centres inside the workspace and hands above the table (module docstring)."""
         centres = centres.copy()
         centres[:, :2] = np.clip(centres[:, :2], -HAND_WORKSPACE_XY, HAND_WORKSPACE_XY)
         centres[:, 2] = np.minimum(centres[:, 2], HAND_WORKSPACE_TOP)
         assert self._current is not None
-        depth = self._current.scene.gripper.contact_depth
-        # Lowest hand point relative to the grasp centre: R (p - depth * y).
-        if self._clip_points is None or self._clip_points[0] != depth:
-            self._clip_points = (depth, self._hand_points - np.array([0.0, depth, 0.0]))
-        local = self._clip_points[1]
+        local = self._clip_local_points()
         lowest = (rotations[:, 2, :] @ local.T).min(axis=1)
         centres[:, 2] = np.maximum(centres[:, 2], TABLE_MARGIN - lowest)
         return centres
@@ -598,7 +610,20 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
             raise RuntimeError("step: expected reset() before step(), found no episode")
         values = self._check_action(action)
         scene, data = self._current.scene, self._current.data
-        model = scene.model
+        targets, centres, rotations, final = self._hand_targets(values)
+        data.ctrl[scene.squeeze_actuators] = values[6::7] * scene.params.squeeze_force
+        unstable = step_hand_targets(scene.model, data, targets)
+        self._target_pos, self._target_rot, self._target_quat = centres, rotations, final
+        return self._transition(values, unstable)
+
+    def _hand_targets(
+        self, values: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """One control step's hand targets (module docstring, *Actions*): ``(n, 14)`` substep
+        rows for :func:`~dg16m_env.physics.lift_scene.step_hand_targets`, and the commanded
+        grasp centres (2, 3), rotations (2, 3, 3) and unit quaternions (2, 4) after the step."""
+        assert self._current is not None
+        scene = self._current.scene
 
         # The same operations as the plain formulas in the comments, on views and reused
         # arrays (bit for bit the same; bench/env_lift.py measures the difference).
@@ -626,7 +651,6 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
         rotations = rotations.reshape(2, 3, 3)
         centres = self._clip_command(start_centres + moves, rotations)
         path = start_centres + self._fraction_column * (centres - start_centres)  # (n, 2, 3)
-        data.ctrl[scene.squeeze_actuators] = pairs[:, 6] * scene.params.squeeze_force
         # Approach axis R[:, 1] of each substep quaternion (w, x, y, z); MuJoCo normalises
         # mocap quaternions itself. Each substep's hand targets (mocap ids 0, 1 = hands) are
         # one row of ``targets``: both flanges, then both quaternions (mjSTATE_MOCAP_POS, _QUAT).
@@ -637,9 +661,7 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
         approach[..., 2] = 2.0 * (y * z + w * x)
         flanges = path - scene.gripper.contact_depth * approach
         targets = np.concatenate([flanges.reshape(n, 6), quats.reshape(n, 8)], axis=1)
-        unstable = step_hand_targets(model, data, targets)
-        self._target_pos, self._target_rot, self._target_quat = centres, rotations, final
-        return self._transition(values, unstable)
+        return targets, centres, rotations, final
 
     def _measure(self, unstable: bool) -> LiftStepMeasures:
         """What the step did: lift, grasps, hold (updated here), termination, reach and angle."""
@@ -649,24 +671,9 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
         com = data.xipos[body]
         lift = float(com[2] - self._rest_com_z)
         grasping = (data.sensordata[scene.finger_contacts] > 0).all(axis=1)  # (2,)
-        both = bool(grasping.all())
         centres = self._hand_centres(data, scene)
         obj_pos, obj_rot = data.xpos[body], data.xmat[body].reshape(3, 3)
-
-        hold, holding, slip = update_hold(  # module docstring, *Success*
-            Hold(self._hold_anchor, self._hold_count),
-            lifted=lift >= self.lift_height and not unstable,
-            both_grasping=both,
-            centres=centres,
-            obj_pos=obj_pos,
-            obj_rot=obj_rot,
-            max_slip=self.max_slip,
-        )
-        self._hold_anchor, self._hold_count = hold.anchor, hold.count
-        success = holding and self._hold_count >= self.hold_steps
         speed = float(np.linalg.norm(data.qvel[scene.object_qvel][:3])) if not unstable else 0.0
-        termination = termination_of(com=com, speed=speed, unstable=unstable, success=success)
-
         if self._grasp is not None:
             goal = self._target_world(obj_pos, obj_rot)
             depth = scene.gripper.contact_depth
@@ -679,17 +686,24 @@ class DualGraspLiftEnv(RenderModes, gymnasium.Env[np.ndarray, np.ndarray]):
             nearest = np.clip(local, self._current.box_low, self._current.box_high)
             distance = np.linalg.norm(local - nearest, axis=1)
             angle = None
-        return LiftStepMeasures(
-            lift=lift,
-            grasping=grasping,
-            holding=holding,
-            success=bool(success),
-            termination=termination,
+        hold, measures = measure_step(  # module docstring, *Success* and *Termination*
+            Hold(self._hold_anchor, self._hold_count),
             unstable=unstable,
-            slip=slip,
+            lift=lift,
+            lift_height=self.lift_height,
+            hold_steps=self.hold_steps,
+            max_slip=self.max_slip,
+            grasping=grasping,
+            centres=centres,
+            obj_pos=obj_pos,
+            obj_rot=obj_rot,
+            com=com,
+            speed=speed,
             reach_distance=float(distance.mean()),
             jaw_angle=angle,
         )
+        self._hold_anchor, self._hold_count = hold.anchor, hold.count
+        return measures
 
     def _step_info(self, m: LiftStepMeasures, terms: dict[str, float]) -> dict[str, Any]:
         return {

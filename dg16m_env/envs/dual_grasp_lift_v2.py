@@ -40,24 +40,20 @@ Version history
 
 from __future__ import annotations
 
-import math
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from dg16m_env.envs.dual_grasp_lift import (
-    CONTROL_HZ,
     HAND_WORKSPACE_TOP,
     HAND_WORKSPACE_XY,
     TABLE_MARGIN,
-    DualGraspLiftEnv,
+    use_timestep,
 )
 from dg16m_env.envs.dual_grasp_lift_v1 import DualGraspLiftV1Env
-from dg16m_env.envs.lift_measures import Hold, LiftStepMeasures, termination_of, update_hold
+from dg16m_env.envs.lift_measures import Hold, LiftStepMeasures, measure_step
 from dg16m_env.envs.lift_observations import STATE_LAYOUT, STATE_SIZE, STATE_SLICES
 from dg16m_env.envs.lift_spaces import MAX_ROTATION, MAX_TRANSLATION
-from dg16m_env.physics.lift_scene import step_hand_targets
 
 PHYSICS_TIMESTEP = 0.005
 """MuJoCo's timestep in v2 (s; 10 physics steps per 50 ms control step)."""
@@ -79,19 +75,6 @@ def lift_kernels() -> Any:
     return _kernels
 
 
-def use_timestep(env: DualGraspLiftEnv, timestep: float) -> None:
-    """Make ``env`` (before its first reset: scenes are compiled then) step MuJoCo at
-    ``timestep`` (s): the control rate stays :data:`~dg16m_env.envs.dual_grasp_lift.CONTROL_HZ`, the physics steps per control
-    step and the hold's length in steps follow."""
-    env.scene_parameters = replace(env.scene_parameters, timestep=timestep)
-    env.timestep = timestep
-    env.substeps = max(1, round(1.0 / (CONTROL_HZ * timestep)))
-    env.control_dt = env.substeps * timestep
-    env._fractions = np.arange(1, env.substeps + 1, dtype=np.float64) / env.substeps
-    env._fraction_column = env._fractions[:, None, None]
-    env.hold_steps = math.ceil(env.hold_time / env.control_dt - 1e-9)
-
-
 class DualGraspLiftV2Env(DualGraspLiftV1Env):
     """Two floating Panda hands lift a benchmark object (v2: v1's task on 5 ms physics steps
     with compiled step arithmetic; see the module docstring). Arguments: v1's."""
@@ -104,43 +87,31 @@ class DualGraspLiftV2Env(DualGraspLiftV1Env):
         self._state_fresh = False  # _measure's observe() is the state the step ended in
         self._centres = np.zeros((2, 3))
 
-    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
-        if self._current is not None and self._ended:
-            raise RuntimeError(
-                f"step: expected reset() after the episode ended ({self._ended}), found another "
-                "step()"
-            )
-        if self._current is None:
-            raise RuntimeError("step: expected reset() before step(), found no episode")
-        values = self._check_action(action)
-        scene, data = self._current.scene, self._current.data
-        model = scene.model
-        depth = scene.gripper.contact_depth
-        if self._clip_points is None or self._clip_points[0] != depth:
-            self._clip_points = (depth, self._hand_points - np.array([0.0, depth, 0.0]))
+    def _hand_targets(
+        self, values: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """v0's hand targets (:meth:`DualGraspLiftEnv._hand_targets`), by
+        :func:`~dg16m_env.envs.lift_kernels.substep_targets`."""
+        assert self._current is not None
         centres, rotations, final = np.empty((2, 3)), np.empty((2, 3, 3)), np.empty((2, 4))
-        targets = self._targets
-        lift_kernels().substep_targets(  # v0's *Actions*
+        lift_kernels().substep_targets(
             values,
             self._target_pos,
             self._target_quat,
             self._fractions,
             MAX_TRANSLATION,
             MAX_ROTATION,
-            depth,
+            self._current.scene.gripper.contact_depth,
             HAND_WORKSPACE_XY,
             HAND_WORKSPACE_TOP,
             TABLE_MARGIN,
-            self._clip_points[1],
-            targets,
+            self._clip_local_points(),
+            self._targets,
             centres,
             rotations,
             final,
         )
-        data.ctrl[scene.squeeze_actuators] = values[6::7] * scene.params.squeeze_force
-        unstable = step_hand_targets(model, data, targets)  # sensors at the last step only
-        self._target_pos, self._target_rot, self._target_quat = centres, rotations, final
-        return self._transition(values, unstable)
+        return self._targets, centres, rotations, final
 
     def _observe(self) -> tuple[float, bool, bool, float, float, float]:
         """:func:`~dg16m_env.envs.lift_kernels.observe` on the current state."""
@@ -179,39 +150,28 @@ class DualGraspLiftV2Env(DualGraspLiftV1Env):
     def _measure(self, unstable: bool) -> LiftStepMeasures:
         """v0's measures (lift, grasps, hold, termination, reach and angle) from one
         :meth:`_observe`, which also leaves the step's state for :meth:`_state_values`."""
-        assert self._current is not None
-        data, body = self._current.data, self._current.scene.object_body
         lift, grasp0, grasp1, reach, angle, speed = self._observe()
         self._state_fresh = True
-        grasping = np.array([grasp0, grasp1])
-        hold, holding, slip = update_hold(  # v0's module docstring, *Success*
+        assert self._current is not None
+        data, body = self._current.data, self._current.scene.object_body
+        hold, measures = measure_step(  # v0's module docstring, *Success* and *Termination*
             Hold(self._hold_anchor, self._hold_count),
-            lifted=lift >= self.lift_height and not unstable,
-            both_grasping=grasp0 and grasp1,
+            unstable=unstable,
+            lift=lift,
+            lift_height=self.lift_height,
+            hold_steps=self.hold_steps,
+            max_slip=self.max_slip,
+            grasping=np.array([grasp0, grasp1]),
             centres=self._centres.copy(),
             obj_pos=data.xpos[body],
             obj_rot=data.xmat[body].reshape(3, 3),
-            max_slip=self.max_slip,
-        )
-        self._hold_anchor, self._hold_count = hold.anchor, hold.count
-        success = holding and self._hold_count >= self.hold_steps
-        termination = termination_of(
             com=data.xipos[body],
-            speed=0.0 if unstable else speed,
-            unstable=unstable,
-            success=success,
-        )
-        return LiftStepMeasures(
-            lift=lift,
-            grasping=grasping,
-            holding=holding,
-            success=bool(success),
-            termination=termination,
-            unstable=unstable,
-            slip=slip,
+            speed=speed,
             reach_distance=reach,
             jaw_angle=angle if self._grasp is not None else None,
         )
+        self._hold_anchor, self._hold_count = hold.anchor, hold.count
+        return measures
 
     def _state_values(self) -> np.ndarray:
         if not self._state_fresh:

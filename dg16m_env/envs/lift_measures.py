@@ -100,3 +100,62 @@ def termination_of(*, com: np.ndarray, speed: float, unstable: bool, success: bo
     if com[2] > OBJECT_MAX_HEIGHT or speed > OBJECT_MAX_SPEED:
         return "out_of_bounds"
     return ""
+
+
+def measure_step(
+    hold: Hold,
+    *,
+    unstable: bool,
+    lift: float,
+    lift_height: float,
+    hold_steps: int,
+    max_slip: float,
+    grasping: np.ndarray,
+    centres: np.ndarray,
+    obj_pos: np.ndarray,
+    obj_rot: np.ndarray,
+    com: np.ndarray,
+    speed: float,
+    reach_distance: float,
+    jaw_angle: float | None,
+) -> tuple[Hold, LiftStepMeasures]:
+    """One step's hold (:func:`update_hold`), success (a hold of ``hold_steps`` steps) and
+    termination (:func:`termination_of`) from what the step measured.
+
+    Args:
+        hold: the hold before this step.
+        unstable: the physics diverged this step.
+        lift: centre-of-mass height above its resting height (m); lift_height: the success
+            height (m); hold_steps: the steps a hold must last; max_slip: as :func:`update_hold`.
+        grasping: (2,) bool, each hand touches the object with both fingers.
+        centres: (2, 3) the hands' grasp centres, world (m).
+        obj_pos, obj_rot, com: the object's (3,) position, (3, 3) rotation and (3,) centre of
+            mass, world (m).
+        speed: the object's linear speed (m/s; ignored when ``unstable``).
+        reach_distance, jaw_angle: passed through to the measures.
+
+    Returns:
+        The hold after the step and the step's :class:`LiftStepMeasures`.
+    """
+    new, holding, slip = update_hold(
+        hold,
+        lifted=lift >= lift_height and not unstable,
+        both_grasping=bool(grasping.all()),
+        centres=centres,
+        obj_pos=obj_pos,
+        obj_rot=obj_rot,
+        max_slip=max_slip,
+    )
+    success = holding and new.count >= hold_steps
+    termination = termination_of(com=com, speed=speed, unstable=unstable, success=success)
+    return new, LiftStepMeasures(
+        lift=lift,
+        grasping=grasping,
+        holding=holding,
+        success=bool(success),
+        termination=termination,
+        unstable=unstable,
+        slip=slip,
+        reach_distance=reach_distance,
+        jaw_angle=jaw_angle,
+    )

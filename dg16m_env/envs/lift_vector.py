@@ -9,8 +9,10 @@ On the 2-core development VM, 2 workers against 1 measured 0.6-1.5x from run to 
 with more environments per worker (1.54x with 32); two unsynchronised processes reach 1.9x
 there, so the step barrier and the scheduler take the rest (BENCHMARKS.md).
 
-What it returns is what ``gymnasium.vector.SyncVectorEnv`` returns for the same environments,
-seeds and actions (the same observation bytes, rewards, flags and ``info`` entries; tested):
+Each worker's block is a ``gymnasium.vector.SyncVectorEnv``; the parent joins the blocks'
+batches, so what it returns is what one ``SyncVectorEnv`` of all the environments returns for
+the same seeds and actions (the same observation bytes, rewards, flags and ``info`` entries;
+tested):
 the sub-environments are ``gymnasium.make(env_id, **env_kwargs)``; ``reset(seed=s)`` seeds
 them ``s, s + 1, ...``; ``options["reset_mask"]`` resets some; ``autoreset_mode`` is
 Gymnasium's (``NextStep`` by default, ``SameStep`` with ``final_obs`` and ``final_info``, or
@@ -27,79 +29,25 @@ env closes every worker and raises ``RuntimeError`` with it.
 
 from __future__ import annotations
 
+import functools
 import multiprocessing
 import os
 import traceback
-from copy import deepcopy
 from typing import Any
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
+from gymnasium.vector.utils import batch_space
 
 LIFT_V2 = "dg16m_env/DualGraspLift-v2"
-
-
-class _Block(VectorEnv):
-    """A worker's environments: steps them and batches their results itself (observations,
-    rewards, flags and Gymnasium's vector ``info`` over the block, ``VectorEnv._add_info``), so
-    that the parent only joins the blocks."""
-
-    def __init__(self, envs: list[Any], mode: str) -> None:
-        super().__init__()
-        self.envs = envs
-        self.num_envs = len(envs)
-        self.mode = AutoresetMode(mode)
-        self.single_observation_space = envs[0].observation_space
-        self._obs: list[Any] = [None] * len(envs)
-        self._out = create_empty_array(self.single_observation_space, len(envs))
-        self._pending = np.zeros(len(envs), dtype=np.bool_)  # NextStep: reset at the next step
-
-    def batch(self) -> Any:
-        return deepcopy(concatenate(self.single_observation_space, self._obs, self._out))
-
-    def reset_block(self, items: list[Any]) -> tuple[Any, dict[str, Any]]:
-        infos: dict[str, Any] = {}
-        for i, item in enumerate(items):  # None: not in the reset mask
-            if item is not None:
-                self._obs[i], info = self.envs[i].reset(seed=item[0], options=item[1])
-                self._pending[i] = False
-                infos = self._add_info(infos, info, i)
-        return self.batch(), infos
-
-    def step_block(self, actions: np.ndarray) -> tuple[Any, ...]:
-        n = self.num_envs
-        rewards = np.zeros(n, dtype=np.float64)
-        terminations = np.zeros(n, dtype=np.bool_)
-        truncations = np.zeros(n, dtype=np.bool_)
-        infos: dict[str, Any] = {}
-        for i in range(n):
-            if self.mode == AutoresetMode.NEXT_STEP and self._pending[i]:
-                self._obs[i], info = self.envs[i].reset()
-            else:
-                if self.mode == AutoresetMode.DISABLED and self._pending[i]:
-                    raise RuntimeError(
-                        f"step: expected a reset of sub-environment {i} of this worker first "
-                        "(autoreset_mode Disabled), found a step after its end"
-                    )
-                obs, rewards[i], terminations[i], truncations[i], info = self.envs[i].step(
-                    actions[i]
-                )
-                self._obs[i] = obs
-                if self.mode == AutoresetMode.SAME_STEP and (terminations[i] or truncations[i]):
-                    infos = self._add_info(infos, {"final_obs": obs, "final_info": info}, i)
-                    self._obs[i], info = self.envs[i].reset()
-            infos = self._add_info(infos, info, i)
-        self._pending = terminations | truncations
-        return self.batch(), rewards, terminations, truncations, infos
 
 
 def _serve(
     conn: Any, env_id: str, env_kwargs: dict[str, Any], count: int, cpu: int | None, mode: str
 ) -> None:
-    """A worker: ``count`` environments, one command per message (``reset``, ``step``,
-    ``close``); answers ``("ok", result)`` or ``("error", (message, traceback))`` and then
-    stops."""
+    """A worker: a ``SyncVectorEnv`` of ``count`` environments (the block), one command per
+    message (``reset``, ``step``, ``close``: its methods' arguments); answers ``("ok",
+    result)`` or ``("error", (message, traceback))`` and then stops."""
     try:
         if cpu is not None:
             os.sched_setaffinity(0, {cpu})
@@ -107,21 +55,20 @@ def _serve(
 
         import dg16m_env  # noqa: F401  registers the environments
 
-        envs = [gymnasium.make(env_id, **env_kwargs) for _ in range(count)]
-        first = envs[0]
+        make = functools.partial(gymnasium.make, env_id, **env_kwargs)
+        block = gymnasium.vector.SyncVectorEnv([make] * count, autoreset_mode=mode)
+        first = block.envs[0]
         conn.send(("ok", (first.observation_space, first.action_space, dict(first.metadata))))
-        block = _Block(envs, mode)
         while True:
             command, payload = conn.recv()
             if command == "close":
-                for env in envs:
-                    env.close()
+                block.close()
                 conn.send(("ok", None))
                 return
             if command == "reset":
-                conn.send(("ok", block.reset_block(payload)))
+                conn.send(("ok", block.reset(seed=payload[0], options=payload[1])))
             elif command == "step":
-                conn.send(("ok", block.step_block(payload)))
+                conn.send(("ok", block.step(payload)))
             else:
                 raise ValueError(f"command: expected reset, step or close, found {command!r}")
     except (KeyboardInterrupt, EOFError):
@@ -247,15 +194,16 @@ class LiftVectorEnv(VectorEnv):
         self.action_space = batch_space(action_space, num_envs)
         self.metadata = dict(metadata)
         self.metadata["autoreset_mode"] = self.autoreset_mode
-        self._terminations = np.zeros(num_envs, dtype=np.bool_)
-        self._truncations = np.zeros(num_envs, dtype=np.bool_)
+        self._block_obs: list[Any] = [None] * workers  # each block's last observations
 
     # ---------------------------------------------------------------------------------------
 
-    def _receive_all(self) -> list[Any]:
-        """Every worker's answer, in order; closes everything and raises on an error."""
+    def _receive_all(self, workers: list[int] | None = None) -> list[Any]:
+        """The answers of ``workers`` (default all), in order; closes everything and raises on
+        an error."""
         answers, errors, details = [], [], []
-        for k, conn in enumerate(self._conns):
+        for k in range(len(self._conns)) if workers is None else workers:
+            conn = self._conns[k]
             try:
                 status, value = conn.recv()
             except EOFError:
@@ -270,12 +218,6 @@ class LiftVectorEnv(VectorEnv):
                 "LiftVectorEnv: " + "; ".join(errors) + "\n\n" + (details[0] or "").rstrip()
             )
         return answers
-
-    def _send_blocks(self, command: str, items: Any) -> list[Any]:
-        """Send each worker its block of ``items``; the workers' answers, in order."""
-        for k, conn in enumerate(self._conns):
-            conn.send((command, items[self._blocks[k] : self._blocks[k + 1]]))
-        return self._receive_all()
 
     def reset(
         self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
@@ -293,10 +235,9 @@ class LiftVectorEnv(VectorEnv):
                 f"seed: expected {self.num_envs} seeds (one per sub-environment), found "
                 f"{len(seeds)}"
             )
-        options = dict(options) if options is not None else None
         mask = np.ones(self.num_envs, dtype=np.bool_)
         if options is not None and "reset_mask" in options:
-            mask = options.pop("reset_mask")
+            mask = options["reset_mask"]
             if not (
                 isinstance(mask, np.ndarray)
                 and mask.shape == (self.num_envs,)
@@ -307,13 +248,21 @@ class LiftVectorEnv(VectorEnv):
                     f"options['reset_mask']: expected a bool array of shape ({self.num_envs},) "
                     f"with a True value, found {mask!r}"
                 )
-        items = [(s, options) if m else None for s, m in zip(seeds, mask, strict=True)]
-        answers = self._send_blocks("reset", items)
-        self._terminations[mask] = False
-        self._truncations[mask] = False
-        observations = _join([a[0] for a in answers])
-        infos = _join_infos([a[1] for a in answers], self._sizes)
-        return observations, infos
+        masked = options is not None and "reset_mask" in options
+        block_infos: list[dict[str, Any]] = [{} for _ in self._conns]
+        sent = []
+        for k, conn in enumerate(self._conns):  # a block none of whose envs resets keeps all
+            lo, hi = self._blocks[k], self._blocks[k + 1]
+            if not mask[lo:hi].any():
+                continue
+            block_options = options
+            if masked:
+                block_options = {**options, "reset_mask": mask[lo:hi]}
+            conn.send(("reset", (seeds[lo:hi], block_options)))
+            sent.append(k)
+        for k, (obs, info) in zip(sent, self._receive_all(sent), strict=True):
+            self._block_obs[k], block_infos[k] = obs, info
+        return _join(self._block_obs), _join_infos(block_infos, self._sizes)
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every sub-environment with its row of ``actions`` (autoreset as configured)."""
@@ -323,13 +272,17 @@ class LiftVectorEnv(VectorEnv):
                 f"actions: expected one row per sub-environment, shape ({self.num_envs}, ...), "
                 f"found shape {actions.shape}"
             )
-        answers = self._send_blocks("step", actions)
-        observations = _join([a[0] for a in answers])
-        rewards = np.concatenate([a[1] for a in answers])
-        self._terminations = np.concatenate([a[2] for a in answers])
-        self._truncations = np.concatenate([a[3] for a in answers])
-        infos = _join_infos([a[4] for a in answers], self._sizes)
-        return observations, rewards, self._terminations.copy(), self._truncations.copy(), infos
+        for k, conn in enumerate(self._conns):
+            conn.send(("step", actions[self._blocks[k] : self._blocks[k + 1]]))
+        answers = self._receive_all()
+        self._block_obs = [a[0] for a in answers]
+        return (
+            _join(self._block_obs),
+            np.concatenate([a[1] for a in answers]),
+            np.concatenate([a[2] for a in answers]),
+            np.concatenate([a[3] for a in answers]),
+            _join_infos([a[4] for a in answers], self._sizes),
+        )
 
     def close_extras(self, **kwargs: Any) -> None:
         """Ask every worker to close its environments, then end the processes."""
