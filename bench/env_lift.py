@@ -49,7 +49,9 @@ random-action episodes, taking turns in one process, and the ratios to v0.
 
 ``--vector ENV_ID``: the 2-worker async vector env of the ``--speed`` probe for one env id of
 this tree, left to the scheduler and pinned; for ``dg16m_env/DualGraspLift-v2`` also its
-``LiftVectorEnv`` (``--num-envs``, default 16; 1 worker, 2 workers, 2 pinned) against one env.
+``LiftVectorEnv`` (``--num-envs``, default 16; 2 workers and 1) against one env, interleaved
+in short slices (``--steps`` env steps each; this VM's speed drifts within seconds), beside
+the machine's ceiling: two free-running processes of pure-Python work against one.
 
     .venv/bin/python bench/env_lift.py --versions 6
     .venv/bin/python bench/env_lift.py --vector dg16m_env/DualGraspLift-v2 --steps 3200
@@ -77,6 +79,7 @@ import contextlib
 import functools
 import hashlib
 import json
+import multiprocessing
 import subprocess
 import sys
 import tempfile
@@ -362,8 +365,11 @@ class _Burn(gymnasium.Env):  # type: ignore[type-arg]
 
 
 def _pinned(make: Callable[[], Any], cpu: int) -> Any:
-    """``make()`` in a process pinned to ``cpu`` (called in a vector env's worker)."""
-    os.sched_setaffinity(0, {cpu % (os.cpu_count() or 1)})
+    """``make()`` in a process pinned to ``cpu`` when called in a vector env's worker; in the
+    parent (Gymnasium's ``AsyncVectorEnv`` makes a first env there for the spaces) it only
+    makes the env: pinning the parent would pin every process it starts later."""
+    if multiprocessing.parent_process() is not None:
+        os.sched_setaffinity(0, {cpu % (os.cpu_count() or 1)})
     return make()
 
 
@@ -385,50 +391,122 @@ def _single_env_rate(make: Callable[[], Any], steps: int, seed: int) -> float:
     return rate
 
 
-def probe_batched(steps: int, seed: int, env_id: str, num_envs: int = 8) -> dict[str, Any]:
-    """Total steps/s of ``LiftVectorEnv`` (``num_envs`` environments, one message per worker
-    per step) with 1 worker, 2 workers and 2 pinned workers, against one env in this process
-    (same object, random actions, autoreset); 3 alternating rounds, medians."""
+def _burn(loops: int) -> int:
+    """Pure-Python work of a fixed size (the machine-ceiling reference)."""
+    total = 0
+    for i in range(loops):
+        total += i
+    return total
+
+
+def _burn_worker(conn: Any, loops: int, repeats: int) -> None:
+    """A free-running burner: on each message, ``repeats`` times :func:`_burn` (no barrier
+    inside), then an answer."""
+    while conn.recv() == "burn":
+        for _ in range(repeats):
+            _burn(loops)
+        conn.send("done")
+
+
+def _interleaved(first: Callable[[], float], second: Callable[[], float], rounds: int) -> Any:
+    """Per round ``first()``, ``second()``, ``first()``: the ratios of ``second`` to the mean of
+    the two ``first`` around it (this VM's speed drifts by tens of percent within seconds;
+    only runs next to each other compare)."""
+    ratios, firsts, seconds = [], [], []
+    for _ in range(rounds):
+        a, b, c = first(), second(), first()
+        ratios.append(2.0 * b / (a + c))
+        firsts.append((a + c) / 2.0)
+        seconds.append(b)
+    return np.array(ratios), np.array(firsts), np.array(seconds)
+
+
+def probe_batched(
+    steps: int, seed: int, env_id: str, num_envs: int = 16, rounds: int = 15
+) -> dict[str, Any]:
+    """Steps/s of ``LiftVectorEnv`` (``num_envs`` environments) with 2 workers (polling
+    ``spin_s`` as by default, and sleeping at once: ``spin_s=0``) and with 1 worker against
+    one env in this process (same object, random actions, autoreset), interleaved in
+    slices of about ``steps`` env steps (:func:`_interleaved`, ``rounds`` rounds: medians and
+    quartiles of the ratios); and the machine's own ceiling: two free-running processes of
+    pure-Python work against the same work in one, interleaved the same way."""
     from dg16m_env.envs.lift_vector import LiftVectorEnv
 
-    def batched(workers: int, pin: bool) -> float:
-        envs = LiftVectorEnv(
-            num_envs, workers=workers, pin_workers=pin, env_id=env_id, object_ids=[VECTOR_OBJECT]
+    if hasattr(os, "sched_getaffinity") and len(os.sched_getaffinity(0)) < (os.cpu_count() or 1):
+        print(f"note: this process may use CPUs {sorted(os.sched_getaffinity(0))} only")
+    single = _lift(env_id, object_ids=[VECTOR_OBJECT])
+    single.action_space.seed(seed)
+    single.reset(seed=seed)
+    vectors = {  # name: (workers, spin_s)
+        name: LiftVectorEnv(
+            num_envs, workers=w, spin_s=spin, env_id=env_id, object_ids=[VECTOR_OBJECT]
         )
+        for name, (w, spin) in {"w2": (2, None), "w2_sleep": (2, 0.0), "w1": (1, None)}.items()
+    }
+    for envs in vectors.values():
         envs.action_space.seed(seed)
         envs.reset(seed=seed)
-        for _ in range(5):
+        for _ in range(3):
             envs.step(envs.action_space.sample())
-        t0 = time.perf_counter()
-        rounds = max(1, steps // num_envs)
-        for _ in range(rounds):
-            envs.step(envs.action_space.sample())
-        rate = rounds * num_envs / (time.perf_counter() - t0)
-        envs.close()
-        return rate
 
-    runs: dict[str, list[float]] = {k: [] for k in ("single", "w1", "w2", "w2_pinned")}
-    for _ in range(3):
-        runs["single"].append(
-            _single_env_rate(
-                functools.partial(_lift, env_id, object_ids=[VECTOR_OBJECT]), steps, seed
-            )
-        )
-        runs["w1"].append(batched(1, False))
-        runs["w2"].append(batched(2, False))
-        runs["w2_pinned"].append(batched(2, True))
-    r = {k: np.array(v) for k, v in runs.items()}
-    return {
-        "num_envs": num_envs,
-        "single_steps_per_s": float(np.median(r["single"])),
-        "w1_steps_per_s": float(np.median(r["w1"])),
-        "w2_steps_per_s": float(np.median(r["w2"])),
-        "w2_pinned_steps_per_s": float(np.median(r["w2_pinned"])),
-        "w2_over_single": float(np.median(r["w2"] / r["single"])),
-        "w2_pinned_over_single": float(np.median(r["w2_pinned"] / r["single"])),
-        "w2_over_w1": float(np.median(r["w2"] / r["w1"])),
-        "runs": runs,
-    }
+    def one() -> float:
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            _, _, terminated, truncated, _ = single.step(single.action_space.sample())
+            if terminated or truncated:
+                single.reset()
+        return steps / (time.perf_counter() - t0)
+
+    def vector(name: str) -> float:
+        envs, batches = vectors[name], max(1, steps // num_envs)
+        t0 = time.perf_counter()
+        for _ in range(batches):
+            envs.step(envs.action_space.sample())
+        return batches * num_envs / (time.perf_counter() - t0)
+
+    out: dict[str, Any] = {"num_envs": num_envs, "rounds": rounds, "slice_steps": steps}
+    out["spin_s"] = vectors["w2"].spin_s
+    for name in vectors:
+        ratios, ones, rates = _interleaved(one, functools.partial(vector, name), rounds)
+        out[f"{name}_over_single"] = float(np.median(ratios))
+        out[f"{name}_over_single_quartiles"] = np.quantile(ratios, [0.25, 0.75]).tolist()
+        out[f"{name}_steps_per_s"] = float(np.median(rates))
+        out["single_steps_per_s"] = float(np.median(ones))
+    for envs in vectors.values():
+        envs.close()
+    single.close()
+
+    t0, loops = time.perf_counter(), 200_000
+    _burn(loops)
+    loops = max(1, int(loops * 1e-3 / (time.perf_counter() - t0)))  # about 1 ms of work
+    repeats = max(1, round(steps / out["single_steps_per_s"] / 1e-3))  # slices as long
+    ctx = multiprocessing.get_context()
+    conns = []
+    for _ in range(2):
+        parent, child = ctx.Pipe()
+        ctx.Process(target=_burn_worker, args=(child, loops, repeats), daemon=True).start()
+        conns.append(parent)
+
+    def burn_one() -> float:
+        t0 = time.perf_counter()
+        for _ in range(repeats):
+            _burn(loops)
+        return repeats / (time.perf_counter() - t0)
+
+    def burn_two() -> float:
+        t0 = time.perf_counter()
+        for conn in conns:
+            conn.send("burn")
+        for conn in conns:
+            conn.recv()
+        return 2 * repeats / (time.perf_counter() - t0)
+
+    ratios, _, _ = _interleaved(burn_one, burn_two, rounds)
+    for conn in conns:
+        conn.send("stop")
+    out["ceiling_two_free_processes"] = float(np.median(ratios))
+    out["ceiling_quartiles"] = np.quantile(ratios, [0.25, 0.75]).tolist()
+    return out
 
 
 def probe_vector(steps: int, seed: int, env_id: str = LIFT_ID) -> dict[str, Any]:
@@ -802,13 +880,22 @@ def main(argv: list[str] | None = None) -> int:
         if args.vector == "dg16m_env/DualGraspLift-v2":
             batched = probe_batched(args.steps, args.seed, args.vector, args.num_envs)
             result["batched"] = batched
+            q2, qs, q1, qc = (
+                batched["w2_over_single_quartiles"],
+                batched["w2_sleep_over_single_quartiles"],
+                batched["w1_over_single_quartiles"],
+                batched["ceiling_quartiles"],
+            )
             print(
-                f"{args.vector}, LiftVectorEnv ({batched['num_envs']} envs): one env in this "
-                f"process {batched['single_steps_per_s']:.0f} steps/s; 1 worker "
-                f"{batched['w1_steps_per_s']:.0f}, 2 workers {batched['w2_steps_per_s']:.0f} "
-                f"({batched['w2_over_single']:.2f}x one env, {batched['w2_over_w1']:.2f}x 1 "
-                f"worker), 2 pinned {batched['w2_pinned_steps_per_s']:.0f} "
-                f"({batched['w2_pinned_over_single']:.2f}x one env)"
+                f"{args.vector}, LiftVectorEnv ({batched['num_envs']} envs), interleaved with one "
+                f"env in this process ({batched['single_steps_per_s']:.0f} steps/s), medians "
+                f"[quartiles] of {batched['rounds']} rounds: 2 workers "
+                f"{batched['w2_over_single']:.2f}x [{q2[0]:.2f}, {q2[1]:.2f}] (spin_s "
+                f"{batched['spin_s']:g}; sleeping at once {batched['w2_sleep_over_single']:.2f}x "
+                f"[{qs[0]:.2f}, {qs[1]:.2f}]), 1 worker "
+                f"{batched['w1_over_single']:.2f}x [{q1[0]:.2f}, {q1[1]:.2f}]; this machine's "
+                f"ceiling (two free processes of pure-Python work against one): "
+                f"{batched['ceiling_two_free_processes']:.2f}x [{qc[0]:.2f}, {qc[1]:.2f}]"
             )
         if args.json:
             write_json_atomic(args.json, result)

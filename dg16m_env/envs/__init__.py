@@ -13,7 +13,8 @@ Ids (each documented in its module, with a version history):
   benchmark: reward modes where success pays best, observation modes, state save and restore;
 * ``dg16m_env/DualGraspLift-v2`` (:mod:`.dual_grasp_lift_v2`): v1's task on 5 ms physics steps
   with compiled step arithmetic, about three times v1's steps per second; ``gym.make_vec``
-  gives it :class:`.lift_vector.LiftVectorEnv` (worker processes, one message per step each).
+  gives it :class:`.lift_vector.LiftVectorEnv` (blocks of environments stepped by this
+  process and worker processes, one message per worker per step).
 
 The Lift task's reward is :mod:`.lift_reward` and its scripted expert :mod:`.lift_expert`;
 :mod:`.common`, :mod:`.objects` and :mod:`.spaces` serve the tasks. Layer rule: modules here

@@ -21,10 +21,10 @@ computed:
   for bit.
 
 ``gym.make_vec("dg16m_env/DualGraspLift-v2", num_envs=N)`` gives a
-:class:`~dg16m_env.envs.lift_vector.LiftVectorEnv`: the N environments in worker processes,
-one message per worker per step (Gymnasium's ``AsyncVectorEnv``, one message per environment,
-spent as long on the messages as on v2's steps); ``vectorization_mode="sync"`` or ``"async"``
-give Gymnasium's own.
+:class:`~dg16m_env.envs.lift_vector.LiftVectorEnv`: the N environments in blocks stepped by
+``workers`` processes, the calling one included, one message per worker per step (Gymnasium's
+``AsyncVectorEnv``, one message per environment, spent as long on the messages as on v2's
+steps); ``vectorization_mode="sync"`` or ``"async"`` give Gymnasium's own.
 
 A v1 policy runs on v2 unchanged (same spaces); its success rate can differ a little, since
 the hands and object move slightly differently. Demonstrations and replays are per version:
