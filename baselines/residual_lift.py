@@ -9,8 +9,9 @@ arguments, then the run.
    :class:`~baselines.lift_residual_policy.LiftResidualPolicy` whose residual starts at zero:
    before any update the policy *is* the base policy (plus the exploration noise).
 2. Roll it out on the training objects (every object not held out by
-   :func:`~dg16m_env.envs.objects.split_objects`) in ``num_envs`` environments (one process,
-   batched network calls), ``reward_mode="normalized_dense"``: a step pays at most 1, the
+   :func:`~dg16m_env.envs.objects.split_objects`) in ``num_envs`` environments (batched
+   network calls; v2's registered vector env steps them in this process and a worker, v1's
+   in this process), ``reward_mode="normalized_dense"``: a step pays at most 1, the
    success step what the steps left could have paid (the v1 bound), so the return is highest
    for the fastest success. Rewards are multiplied by ``reward_scale`` for the critic.
    An episode that reaches ``T`` (200 steps) ends there by the task's definition (``elapsed``
@@ -194,14 +195,24 @@ def main() -> None:
 
     ref = load_benchmark_ref()
     train_ids, test_ids = split_objects(list(ref.object_ids))
-    envs = gym.make_vec(
-        args.env_id,
-        num_envs=args.num_envs,
-        vectorization_mode="sync",
-        vector_kwargs={"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP},
-        object_ids=train_ids,
-        reward_mode=args.reward_mode,
-    )
+    same_step = gym.vector.AutoresetMode.SAME_STEP
+    if gym.spec(args.env_id).vector_entry_point is not None:  # v2: LiftVectorEnv, 2 processes
+        envs = gym.make_vec(
+            args.env_id,
+            num_envs=args.num_envs,
+            autoreset_mode=same_step,
+            object_ids=train_ids,
+            reward_mode=args.reward_mode,
+        )
+    else:  # v1: in this process
+        envs = gym.make_vec(
+            args.env_id,
+            num_envs=args.num_envs,
+            vectorization_mode="sync",
+            vector_kwargs={"autoreset_mode": same_step},
+            object_ids=train_ids,
+            reward_mode=args.reward_mode,
+        )
 
     n, t = args.num_envs, args.num_steps
     batch = n * t
