@@ -54,7 +54,7 @@ in short slices (``--steps`` env steps each; this VM's speed drifts within secon
 the machine's ceiling: two free-running processes of pure-Python work against one.
 
     .venv/bin/python bench/env_lift.py --versions 6
-    .venv/bin/python bench/env_lift.py --vector dg16m_env/DualGraspLift-v2 --steps 3200
+    .venv/bin/python bench/env_lift.py --vector dg16m_env/DualGraspLift-v2 --num-envs 16 --steps 800
 
 ``--timesteps 0.002,0.005,0.01`` (a study for a later version, not what v0 does): the scripted
 expert with the benchmark's target on the same seeded episodes with the scene's timestep
@@ -466,12 +466,14 @@ def probe_batched(
 
     out: dict[str, Any] = {"num_envs": num_envs, "rounds": rounds, "slice_steps": steps}
     out["spin_s"] = vectors["w2"].spin_s
+    singles = []
     for name in vectors:
         ratios, ones, rates = _interleaved(one, functools.partial(vector, name), rounds)
         out[f"{name}_over_single"] = float(np.median(ratios))
         out[f"{name}_over_single_quartiles"] = np.quantile(ratios, [0.25, 0.75]).tolist()
         out[f"{name}_steps_per_s"] = float(np.median(rates))
-        out["single_steps_per_s"] = float(np.median(ones))
+        singles += ones.tolist()
+    out["single_steps_per_s"] = float(np.median(singles))
     for envs in vectors.values():
         envs.close()
     single.close()
@@ -481,11 +483,13 @@ def probe_batched(
     loops = max(1, int(loops * 1e-3 / (time.perf_counter() - t0)))  # about 1 ms of work
     repeats = max(1, round(steps / out["single_steps_per_s"] / 1e-3))  # slices as long
     ctx = multiprocessing.get_context()
-    conns = []
+    conns, burners = [], []
     for _ in range(2):
         parent, child = ctx.Pipe()
-        ctx.Process(target=_burn_worker, args=(child, loops, repeats), daemon=True).start()
+        burner = ctx.Process(target=_burn_worker, args=(child, loops, repeats), daemon=True)
+        burner.start()
         conns.append(parent)
+        burners.append(burner)
 
     def burn_one() -> float:
         t0 = time.perf_counter()
@@ -502,8 +506,9 @@ def probe_batched(
         return 2 * repeats / (time.perf_counter() - t0)
 
     ratios, _, _ = _interleaved(burn_one, burn_two, rounds)
-    for conn in conns:
+    for conn, burner in zip(conns, burners, strict=True):
         conn.send("stop")
+        burner.join(timeout=10.0)
     out["ceiling_two_free_processes"] = float(np.median(ratios))
     out["ceiling_quartiles"] = np.quantile(ratios, [0.25, 0.75]).tolist()
     return out

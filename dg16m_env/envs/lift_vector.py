@@ -209,7 +209,8 @@ class LiftVectorEnv(VectorEnv):
             most the CPUs this process may use, else 0): on a virtual machine a sleeping core
             takes hundreds of microseconds to wake, which is most of a small block's step
             (BENCHMARKS.md). The cost: while this process computes between steps (a policy),
-            each worker keeps its core busy for up to ``spin_s``; 0 sleeps at once.
+            each worker keeps its core busy for up to ``spin_s``, and where other busy
+            processes share the cores the polling takes their time; 0 sleeps at once.
         autoreset_mode: Gymnasium's (``"NextStep"``, ``"SameStep"`` or ``"Disabled"``).
         env_id: the environment (default ``dg16m_env/DualGraspLift-v2``).
         context: the ``multiprocessing`` start method (default: Python's, as Gymnasium's
