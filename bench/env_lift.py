@@ -373,6 +373,16 @@ def _pinned(make: Callable[[], Any], cpu: int) -> Any:
     return make()
 
 
+def _random_steps_rate(env: Any, steps: int) -> float:
+    """Steps/s of ``steps`` random-action steps of ``env`` (reset where an episode ends)."""
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            env.reset()
+    return steps / (time.perf_counter() - t0)
+
+
 def _single_env_rate(make: Callable[[], Any], steps: int, seed: int) -> float:
     """Steps/s of ``steps`` random-action steps (autoreset) of one ``make()`` env, after 20
     steps of warm-up (the object is compiled at the first reset)."""
@@ -381,12 +391,7 @@ def _single_env_rate(make: Callable[[], Any], steps: int, seed: int) -> float:
     env.reset(seed=seed)
     for _ in range(20):
         env.step(env.action_space.sample())
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-        if terminated or truncated:
-            env.reset()
-    rate = steps / (time.perf_counter() - t0)
+    rate = _random_steps_rate(env, steps)
     env.close()
     return rate
 
@@ -449,13 +454,7 @@ def probe_batched(
         for _ in range(3):
             envs.step(envs.action_space.sample())
 
-    def one() -> float:
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            _, _, terminated, truncated, _ = single.step(single.action_space.sample())
-            if terminated or truncated:
-                single.reset()
-        return steps / (time.perf_counter() - t0)
+    one = functools.partial(_random_steps_rate, single, steps)
 
     def vector(name: str) -> float:
         envs, batches = vectors[name], max(1, steps // num_envs)

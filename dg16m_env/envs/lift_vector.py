@@ -99,8 +99,7 @@ def _serve(
 
         make = functools.partial(gymnasium.make, env_id, **env_kwargs)
         block = _RecordingSyncVectorEnv([make] * count, autoreset_mode=mode)
-        first = block.envs[0]
-        conn.send(("ok", (first.observation_space, first.action_space, dict(first.metadata))))
+        conn.send(("ok", "ready"))  # the spaces are block 0's, made in the calling process
         while True:
             _wait(conn, spin_s)
             command, payload = conn.recv()
