@@ -6,7 +6,7 @@ Reads top to bottom (CleanRL style): one dataclass of arguments, then the run.
 1. Split the benchmark's objects: every third object held out for evaluation
    (:func:`dg16m_env.envs.objects.split_objects`).
 2. Read the demonstrations: a Minari dataset written by ``dg16m demos collect`` (episodes of
-   :class:`~dg16m_env.envs.lift_feedback_expert.FeedbackLiftExpert` on the training objects);
+   :class:`~dg16m_env.envs.lift.experts.FeedbackLiftExpert` on the training objects);
    the successful episodes' (state, action) pairs are the first training set. The dataset's
    env id (``dg16m demos collect --env-id``) is the env of the DAgger rollouts and the
    evaluation.
@@ -54,12 +54,17 @@ from baselines.lift_bc_policy import (
     hand_features,
     make_network,
 )
-from baselines.sb3_common import lift_held_out_evaluators, parse_args, write_run
-from dataset_gen.atomic import atomic_path
-from dg16m_env.envs.lift_feedback_expert import FeedbackLiftExpert
-from dg16m_env.envs.lift_observations import STATE_SIZE
-from dg16m_env.envs.objects import split_objects
-from dg16m_env.evaluators import EvaluationResult, load_benchmark_ref
+from baselines.sb3_common import (
+    lift_held_out_evaluators,
+    output_and_split,
+    parse_args,
+    print_results,
+    write_run,
+)
+from dg16m_core.atomic import atomic_path
+from dg16m_env.envs.lift.experts import FeedbackLiftExpert
+from dg16m_env.envs.lift.observations import STATE_SIZE
+from dg16m_env.evaluators import EvaluationResult
 
 PHASES = ("approach", "close", "lift")
 """The expert's phases (:meth:`FeedbackLiftExpert.phase`)."""
@@ -107,7 +112,7 @@ def load_demonstrations(source: str) -> tuple[np.ndarray, np.ndarray, int, int, 
     """The successful episodes' ``(N, 117)`` states and ``(N, 14)`` actions of a Minari dataset
     of ``"state"`` observations, the number of episodes and of successful ones, and the env id
     they were collected on."""
-    from dg16m_env.envs.lift_demos import ENV_IDS, demos_metadata, open_lift_demos
+    from dg16m_env.envs.lift.demo_files import ENV_IDS, demos_metadata, open_lift_demos
 
     dataset = open_lift_demos(source)
     metadata = demos_metadata(dataset)
@@ -244,9 +249,7 @@ def main() -> None:
     import torch
 
     torch.set_num_threads(args.threads)
-    args.out.mkdir(parents=True, exist_ok=True)
-    ref = load_benchmark_ref()
-    train_ids, test_ids = split_objects(list(ref.object_ids))
+    train_ids, test_ids = output_and_split(args.out)
     expert = FeedbackLiftExpert()
     rng = np.random.default_rng(args.seed)
     phases = None if args.dagger_phases == "all" else set(args.dagger_phases.split(","))
@@ -321,9 +324,7 @@ def main() -> None:
         train_seconds=train_s,
         eval_seconds=eval_s,
     )
-    for name, result in results.items():
-        print(f"{name:<17} {result.format().splitlines()[1].strip()}")
-    print(f"wrote {args.out}")
+    print_results(results, args.out)
 
 
 if __name__ == "__main__":

@@ -182,7 +182,7 @@ class CGDFConfig:
 
     Attributes:
         seed: seed of the parameter initialisation (an explicit ``torch.Generator``).
-        gripper: gripper model name (:data:`dataset_gen.gripper.GRIPPERS`).
+        gripper: gripper model name (:data:`dataset_gen.grasps.gripper.GRIPPERS`).
         length_scale: lengths are divided by it (m).
         n_anchors: S, cloud points carrying field features (farthest point sampling).
         edge_k: cloud neighbours of each anchor in the edge layer.

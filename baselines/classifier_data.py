@@ -32,9 +32,9 @@ import numpy as np
 import trimesh
 from tqdm import tqdm
 
-from dataset_gen.errors import Dg16mError
 from dataset_gen.io import read_dg16m
-from dataset_gen.sources import object_seed
+from dataset_gen.sources.object_source import object_seed
+from dg16m_core.errors import Dg16mError
 from dg16m_env.benchmark.sources import file_poses
 from dg16m_env.subjects.observation import DEFAULT_POINTS, surface_points
 

@@ -16,8 +16,8 @@ import numpy as np
 
 from baselines.cloud_hand import DepthViews, hand_hits_cloud, hands_in_seen_free_space
 from baselines.cloud_inputs import Cloud, CloudSamplerConfig, _neighbours
-from dataset_gen.gripper import GripperModel, get_gripper
-from dataset_gen.sampling import SingleArmGrasps, _tangent_basis
+from dataset_gen.grasps.gripper import GripperModel, get_gripper
+from dataset_gen.grasps.sampling import SingleArmGrasps, _tangent_basis
 
 MAX_BACK_FACING = 0.5
 """An enclosing grasp's contact is refused when its normal points back towards the other finger
@@ -51,7 +51,7 @@ def enclosing_poses(
     Args:
         points: (S, 3) approached points (m). normals: (S, 3) their unit outward normals.
         angles: (S, A) closing-axis angles (rad) about the approach, measured from the first
-            vector of :func:`dataset_gen.sampling._tangent_basis` of the approach.
+            vector of :func:`dataset_gen.grasps.sampling._tangent_basis` of the approach.
         reach: how far the fingertips pass the point along the approach (m).
         model: the gripper.
 
@@ -136,7 +136,7 @@ def sample_enclosing_grasps(
             to be empty).
 
     Returns:
-        :class:`~dataset_gen.sampling.SingleArmGrasps` (at most one per seed, its narrowest
+        :class:`~dataset_gen.grasps.sampling.SingleArmGrasps` (at most one per seed, its narrowest
         collision-free closing axis; at most ``max_grasps``); ``face_ids`` are the contacts'
         cloud indices; a contact normal is the cloud's where it lies in the friction cone about
         the closing axis, else the closing axis itself (the face the finger meets was not seen:

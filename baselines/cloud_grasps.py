@@ -4,8 +4,8 @@ mesh).
 What a robot sees of an object is a point cloud with normals: the whole surface
 (:func:`dg16m_env.subjects.observation.object_observation`) or what one or two depth cameras see of it
 (the environments' ``obs_mode="partial"``). :func:`cloud_dual_candidates` turns such a cloud into
-dual-arm Panda grasps by the steps of the mesh sampler (:mod:`dataset_gen.sampling`) and the
-generator's pairing (:mod:`dataset_gen.pairing`), with the cloud standing in for the mesh:
+dual-arm Panda grasps by the steps of the mesh sampler (:mod:`dataset_gen.grasps.sampling`) and the
+generator's pairing (:mod:`dataset_gen.grasps.pairing`), with the cloud standing in for the mesh:
 
 1. **Contact pairs across the cloud** (:func:`cloud_contact_pairs`). ``n_seeds`` cloud points
    ``p0`` are drawn without replacement. A partner ``p1`` is any other cloud point with
@@ -17,14 +17,14 @@ generator's pairing (:mod:`dataset_gen.pairing`), with the cloud standing in for
 2. **The Panda hand at each pair** (:func:`hand_poses`): the closing axis ``x = normalize(n0 -
    n1)`` (the mean of the two outward normals, the mesh sampler's ``axis="normals"``; finger 0
    on ``p0`` at ``+x``), the grasp centre ``c = (p0 + p1) / 2`` at ``(0, contact_depth, 0)`` in
-   the grasp frame (as :meth:`dataset_gen.gripper.GripperModel.pose_from_contacts`), and
+   the grasp frame (as :meth:`dataset_gen.grasps.gripper.GripperModel.pose_from_contacts`), and
    ``n_approach`` approach directions about ``x``, evenly spaced with a seeded offset. The jaw
    width is ``w = (p0 - p1) . x``; pairs outside ``(min_width, max_opening - opening_margin]``
    are dropped.
 3. **Collision with the cloud** (:func:`hand_hits_cloud`), vectorised over poses and points. A
    pose is rejected when any cloud point lies, beyond ``tolerance`` (m), inside
 
-   * the palm box (:meth:`~dataset_gen.gripper.GripperModel.palm_box`, shrunk by ``tolerance``);
+   * the palm box (:meth:`~dataset_gen.grasps.gripper.GripperModel.palm_box`, shrunk by ``tolerance``);
    * a finger's swept volume: the finger's footprint (``palm_depth <= y <= finger_tip``,
      ``|z| <= finger_width / 2``) from its contact outwards past the fully open finger,
      ``x`` in ``(x0 + tolerance, max_opening / 2 + finger_thickness]`` for finger 0 (``x0`` its
@@ -37,7 +37,7 @@ generator's pairing (:mod:`dataset_gen.pairing`), with the cloud standing in for
    first approach that passes is kept: one single-arm grasp per contact pair, as the mesh
    sampler and the DG16M release do; the first ``max_grasps`` pairs that have one, in seed
    order, are kept.
-4. **Dual candidates** (:func:`dataset_gen.pairing.candidate_pairs`): every unique pair of those
+4. **Dual candidates** (:func:`dataset_gen.grasps.pairing.candidate_pairs`): every unique pair of those
    grasps whose centres are at least ``min_center_distance`` (the paper's 0.1 m) apart and whose
    two open hands (palm and fingers, exact box test) do not intersect each other; at most
    ``max_pairs`` of them, a seeded uniform subset, in ascending pair order.
@@ -70,7 +70,7 @@ intersect what the cameras did not see, and one camera never sees two antipodal 
 convex object (a face and the face opposite it cannot both face one viewpoint); two cameras on
 opposite sides can.
 
-Units: metres; object frame; poses are the dg16m grasp frame (:mod:`dataset_gen.gripper`).
+Units: metres; object frame; poses are the dg16m grasp frame (:mod:`dataset_gen.grasps.gripper`).
 Randomness: only the caller's ``numpy.random.Generator`` (seeds, approach offsets, then with
 ``enclosing`` the enclosing seeds and closing-axis offsets, then the subset of pairs, in that
 order): the same cloud, configuration and generator state give the same arrays.
@@ -119,10 +119,10 @@ from baselines.cloud_inputs import (
     _neighbours,
     check_cloud,
 )
-from dataset_gen.gripper import get_gripper
-from dataset_gen.pairing import candidate_pairs, dual_contacts, dual_poses
-from dataset_gen.parameters import PAPER
-from dataset_gen.sampling import SingleArmGrasps
+from dataset_gen.grasps.gripper import get_gripper
+from dataset_gen.grasps.pairing import candidate_pairs, dual_contacts, dual_poses
+from dataset_gen.grasps.sampling import SingleArmGrasps
+from dg16m_core.parameters import PAPER
 
 _COS_EPS = 1e-12
 
@@ -217,7 +217,7 @@ def sample_cloud_grasps(
             saw empty (:func:`hands_in_seen_free_space`).
 
     Returns:
-        :class:`~dataset_gen.sampling.SingleArmGrasps` (M <= ``max_grasps``) whose
+        :class:`~dataset_gen.grasps.sampling.SingleArmGrasps` (M <= ``max_grasps``) whose
         ``face_ids`` (M, 2) are the contacts' cloud indices.
     """
     if not isinstance(rng, np.random.Generator):

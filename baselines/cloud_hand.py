@@ -15,8 +15,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from baselines.cloud_inputs import Cloud, _neighbours
-from dataset_gen.gripper import Box, GripperModel
-from dataset_gen.sampling import _tangent_basis
+from dataset_gen.grasps.gripper import Box, GripperModel
+from dataset_gen.grasps.sampling import _tangent_basis
 
 
 def hand_poses(
@@ -32,7 +32,7 @@ def hand_poses(
     Args:
         p0, p1: (S, 3) contacts (m). n0, n1: (S, 3) their unit outward normals.
         angles: (S, A) approach angles (rad) about the closing axis, measured from the first
-            vector of :func:`dataset_gen.sampling._tangent_basis` of the axis.
+            vector of :func:`dataset_gen.grasps.sampling._tangent_basis` of the axis.
         model: the gripper.
 
     Returns:
@@ -189,7 +189,7 @@ class DepthViews:
 def hand_volume_points(model: GripperModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points filling the open hand (grasp frame, m): ``palm (6 * 4 * 4, 3)``, ``finger 0
     (3 * 5 * 3, 3)`` and ``finger 1``, a grid over each collision box with its faces (the
-    boxes of :meth:`~dataset_gen.gripper.GripperModel.collision_boxes` at full opening)."""
+    boxes of :meth:`~dataset_gen.grasps.gripper.GripperModel.collision_boxes` at full opening)."""
 
     def grid(box: Box, counts: tuple[int, int, int]) -> np.ndarray:
         lo = np.asarray(box.center) - np.asarray(box.half_extents)

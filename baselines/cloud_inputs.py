@@ -15,10 +15,10 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial import cKDTree
 
-from dataset_gen.checks import check_fields
-from dataset_gen.errors import Dg16mError
-from dataset_gen.gripper import GripperModel, get_gripper
-from dataset_gen.parameters import PAPER
+from dataset_gen.grasps.gripper import GripperModel, get_gripper
+from dg16m_core.checks import check_fields
+from dg16m_core.errors import Dg16mError
+from dg16m_core.parameters import PAPER
 
 MIN_POINTS = 16
 """Fewest cloud points accepted (after the mask)."""
@@ -159,7 +159,7 @@ class CloudSamplerConfig:
             (:attr:`Cloud.spacing`) on every side but the fingers' contact faces.
         pad_margin: a contact must lie this far inside its pad's footprint (m).
         min_center_distance: the two grasps' centres at least this far apart (m).
-        gripper: a gripper name (:data:`dataset_gen.gripper.GRIPPERS`).
+        gripper: a gripper name (:data:`dataset_gen.grasps.gripper.GRIPPERS`).
         enclosing: also sample enclosing grasps (:func:`sample_enclosing_grasps`: the hand
             approaches a point against its normal and closes on whatever lies between its
             fingers), which need only one observed side of a thin part.

@@ -21,7 +21,7 @@ A :class:`CloudPredictor` is a predictor ``observation -> (poses (K, 2, 4, 4), s
    the cameras saw (:func:`hands_with_seen_contacts`); step 4 then ranks candidates whose hands
    come within ``guessed_clearance`` of a guessed point after all others;
 3. checks each candidate for force closure on the cloud's own contacts and normals
-   (``force_closure=True``, the default: :func:`dataset_gen.pairing.score_pairs` with the
+   (``force_closure=True``, the default: :func:`dataset_gen.grasps.pairing.score_pairs` with the
    paper's parameters, the check the dataset's labels come from) and ranks them:
    ``ranker="cgdf"`` / ``"pointnetgpd"`` by a trained classifier's logit
    (``baselines/checkpoints/<ranker>-dg16m.pt`` unless ``checkpoint`` names another file; the
@@ -53,7 +53,7 @@ never sees two antipodal contacts of a convex object, so the partial predictors 
 cameras on roughly opposite sides (``MAX_CAMERAS`` of the environments).
 
 Randomness: per object, ``numpy.random.default_rng(object_seed(seed, "cloud:<object_id>"))``
-(:func:`dataset_gen.sources.object_seed`) draws the cameras, the cloud subset, the candidates and
+(:func:`dataset_gen.sources.object_source.object_seed`) draws the cameras, the cloud subset, the candidates and
 (random ranker) the scores, in that order: the output is a function of the observation and the
 parameters only. The same ``seed`` gives every ranker the same candidates.
 
@@ -98,11 +98,11 @@ from baselines.shape_completion import (
     complete_cloud,
     procedural_library,
 )
-from dataset_gen.checks import check_integer
-from dataset_gen.gripper import get_gripper
-from dataset_gen.pairing import score_pairs
-from dataset_gen.parameters import PAPER
-from dataset_gen.sources import object_seed
+from dataset_gen.grasps.gripper import get_gripper
+from dataset_gen.grasps.pairing import score_pairs
+from dataset_gen.sources.object_source import object_seed
+from dg16m_core.checks import check_integer
+from dg16m_core.parameters import PAPER
 
 Ranker = Literal["cgdf", "pointnetgpd", "random", "reversed"]
 RANKERS: tuple[str, ...] = get_args(Ranker)
@@ -306,7 +306,7 @@ def classifier_scores(model: Any, points: np.ndarray, poses: np.ndarray) -> np.n
 
 def cloud_force_closure(candidates: DualCandidates) -> np.ndarray:
     """(N,) bool: each candidate's four cloud contacts pass the force-closure check
-    (:func:`dataset_gen.pairing.score_pairs`, the paper's mass, gravity, mu, f_high and
+    (:func:`dataset_gen.grasps.pairing.score_pairs`, the paper's mass, gravity, mu, f_high and
     threshold; the physical convention)."""
     if candidates.n == 0:
         return np.zeros(0, dtype=bool)

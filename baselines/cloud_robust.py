@@ -1,4 +1,4 @@
-"""The robust criterion (:mod:`dataset_gen.robust`) on dual candidates sampled on a point cloud.
+"""The robust criterion (:mod:`dataset_gen.grasps.robust`) on dual candidates sampled on a point cloud.
 
 The paper's check keeps a dual grasp whose four point contacts cancel gravity at the centre of
 mass. Two parallel-jaw grasps are weak against turning about the line joining the hands, which
@@ -40,12 +40,12 @@ import trimesh
 from scipy.spatial import QhullError
 
 from baselines.cloud_grasps import CloudError
-from dataset_gen.checks import check_integer, check_number
-from dataset_gen.parameters import PAPER
-from dataset_gen.robust import disturbance_motion
+from dataset_gen.grasps.robust import disturbance_motion
+from dg16m_core.checks import check_integer, check_number
+from dg16m_core.parameters import PAPER
 
 ROBUST_CHUNK = 64
-"""Candidates per call of :func:`dataset_gen.robust.disturbance_motion` in :func:`robust_first`."""
+"""Candidates per call of :func:`dataset_gen.grasps.robust.disturbance_motion` in :func:`robust_first`."""
 
 MOTION_RATIO_LEVELS = (1.0, 2.0, 4.0)
 """Default levels of :func:`robust_first`: robust (the protocol's bounds), then within twice and
@@ -144,7 +144,7 @@ def robust_first(
     chunk_size: int = ROBUST_CHUNK,
 ) -> RobustRanking:
     """Rank passing candidates by their disturbance motion ratio
-    (:func:`dataset_gen.robust.disturbance_motion`: the paper's mass, friction, force bound and
+    (:func:`dataset_gen.grasps.robust.disturbance_motion`: the paper's mass, friction, force bound and
     threshold, the protocol's loads; centre of mass at the origin) before their scores: each
     candidate gains ``bonus / len(max_ratios)`` for every level of ``max_ratios`` its ratio is
     within, so a robust candidate (ratio <= ``max_ratios[0]``) gains ``bonus`` and ranks first,
@@ -171,7 +171,7 @@ def robust_first(
 
     Raises:
         CloudError: shapes other than documented, or bad ``k``, ``bonus``, ``max_ratios``.
-        dataset_gen.robust.RobustError: an inertia that is not a finite (3, 3) positive
+        dataset_gen.grasps.robust.RobustError: an inertia that is not a finite (3, 3) positive
             definite matrix.
     """
     scores = np.asarray(scores, dtype=np.float64)

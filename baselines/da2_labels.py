@@ -130,10 +130,10 @@ from typing import Any, Literal, get_args
 import numpy as np
 from matplotlib.figure import Figure
 
-from baselines.pairing import BaselineError
-from dataset_gen.checks import check_number
+from baselines.pairing_baselines import BaselineError
 from dataset_gen.force_closure.geometry import gram_matrix
 from dataset_gen.io import DualGraspSet
+from dg16m_core.checks import check_number
 
 NormalConvention = Literal["outward", "inward"]
 NORMAL_CONVENTIONS: tuple[str, ...] = get_args(NormalConvention)

@@ -34,9 +34,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dataset_gen.atomic import write_json_atomic
-from dataset_gen.cli import add_command
-from dataset_gen.errors import Dg16mError
+from dg16m_core.atomic import write_json_atomic
+from dg16m_core.cli import add_command
+from dg16m_core.errors import Dg16mError
 
 MARKER = "demo.json"
 """The file that marks a folder as a demo's (and records its steps)."""
@@ -96,9 +96,16 @@ def _args(*parts: str | Path | list[str]) -> tuple[str, ...]:
 def demo_steps(out: Path, *, objects: int = 4, workers: int = 2) -> list[DemoStep]:
     """The demo's steps for folder ``out``, ``objects`` objects and ``workers`` processes."""
     w, n = f"--workers {workers}", str(objects)
-    bench = out / "benchmark" / "benchmark.h5"
-    subs = out / "submissions"
-    db = out / "leaderboard" / "board.db"
+    return [
+        *_dataset_steps(out, n, w),
+        *_benchmark_steps(out, n, w),
+        *_baseline_steps(out, w),
+        *_leaderboard_steps(out, w),
+    ]
+
+
+def _dataset_steps(out: Path, n: str, w: str) -> list[DemoStep]:
+    """Steps 1 and 2: objects, their picture, a generated dataset and its statistics."""
     return [
         DemoStep(
             "procedural objects",
@@ -120,6 +127,13 @@ def demo_steps(out: Path, *, objects: int = 4, workers: int = 2) -> list[DemoSte
             _args("stats", out / "dataset", "--out", out / "stats"),
             ("stats/",),
         ),
+    ]
+
+
+def _benchmark_steps(out: Path, n: str, w: str) -> list[DemoStep]:
+    """Steps 3 and 4: a small benchmark, its plot, one trial replayed."""
+    bench = out / "benchmark" / "benchmark.h5"
+    return [
         DemoStep(
             "a small benchmark, labelled in MuJoCo (K = 8 perturbed trials per pair)",
             _args(
@@ -140,6 +154,14 @@ def demo_steps(out: Path, *, objects: int = 4, workers: int = 2) -> list[DemoSte
             _args("sim replay", bench, "--row 0 --out", out / "replay.png"),
             ("replay.png",),
         ),
+    ]
+
+
+def _baseline_steps(out: Path, w: str) -> list[DemoStep]:
+    """Step 5: two baselines' submissions, one of them scored."""
+    bench = out / "benchmark" / "benchmark.h5"
+    subs = out / "submissions"
+    return [
         DemoStep(
             "predictions of two Table III baselines (random and force-closure pairing)",
             _args(
@@ -168,6 +190,15 @@ def demo_steps(out: Path, *, objects: int = 4, workers: int = 2) -> list[DemoSte
             ),
             ("scores/force_closure.json",),
         ),
+    ]
+
+
+def _leaderboard_steps(out: Path, w: str) -> list[DemoStep]:
+    """Step 6: a local leaderboard with both baselines, printed and exported."""
+    bench = out / "benchmark" / "benchmark.h5"
+    subs = out / "submissions"
+    db = out / "leaderboard" / "board.db"
+    return [
         DemoStep(
             "a local leaderboard for the benchmark",
             _args(
@@ -266,7 +297,7 @@ def run_demo(
         objects: procedural objects (dataset and benchmark), at least 1.
         workers: local processes per step.
         run: runs one ``dg16m`` command line and returns its exit status (default
-            :func:`dataset_gen.cli.main`, in this process).
+            :func:`dg16m_core.cli.main`, in this process).
         stream: where progress goes (default ``sys.stdout``).
 
     Raises:
@@ -278,7 +309,7 @@ def run_demo(
     if not isinstance(workers, int) or workers < 1:
         raise DemoError(f"--workers: expected an integer >= 1, found {workers!r}")
     if run is None:
-        from dataset_gen.cli import main as run
+        from dg16m_core.cli import main as run
     stream = stream or sys.stdout
     out = Path(out)
     prepare_folder(out)

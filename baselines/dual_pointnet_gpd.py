@@ -60,7 +60,7 @@ class DualPointNetGPDConfig:
 
     Attributes:
         seed: seed of the parameter initialisation (an explicit ``torch.Generator``).
-        gripper: gripper model name (:data:`dataset_gen.gripper.GRIPPERS`).
+        gripper: gripper model name (:data:`dataset_gen.grasps.gripper.GRIPPERS`).
         points_per_hand: K, object points cropped per hand. 128 of a 2048-point cloud of a
             0.3-1.2 m object is a ball of roughly 0.1-0.25 m around the grasp centre.
         crop: ``"centre"`` (nearest to the grasp centre) or ``"template"`` (nearest to the

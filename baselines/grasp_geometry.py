@@ -6,7 +6,7 @@ Conventions
 -----------
 * ``points``: (P, 3) or (B, P, 3) object surface points, object frame, metres.
 * ``poses``: (n, 2, 4, 4) or (B, n, 2, 4, 4) dual grasps: two hand poses, "Panda grasp frame ->
-  object frame" (metres). Grasp frame (:mod:`dataset_gen.gripper`): ``+x`` closing axis, ``+y``
+  object frame" (metres). Grasp frame (:mod:`dataset_gen.grasps.gripper`): ``+x`` closing axis, ``+y``
   approach axis (palm -> fingertips), origin at the hand's flange; the pads' centre (the *grasp
   centre*) is at ``(0, contact_depth, 0)``.
 * Models centre every object at its cloud's centroid (:func:`centre_inputs`) and measure lengths
@@ -38,9 +38,9 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from baselines.pairing import BaselineError
-from dataset_gen.atomic import atomic_path
-from dataset_gen.gripper import GripperModel, get_gripper
+from baselines.pairing_baselines import BaselineError
+from dataset_gen.grasps.gripper import GripperModel, get_gripper
+from dg16m_core.atomic import atomic_path
 
 CHECKPOINT_FORMAT = "dg16m-classifier"
 """Value of a checkpoint's ``format`` entry."""
@@ -126,7 +126,7 @@ def gripper_template(
 ) -> np.ndarray:
     """Template points on the open gripper, grasp frame, metres (deterministic, no sampling).
 
-    Built from the gripper's boxes (:class:`dataset_gen.gripper.GripperModel`; for the Panda:
+    Built from the gripper's boxes (:class:`dataset_gen.grasps.gripper.GripperModel`; for the Panda:
     palm face at y = 0.066 m, fingertips at 0.1122 m, 0.02 m thick fingers, 0.08 m opening,
     palm 0.205 x 0.066 x 0.063 m). With ``r = finger_rows`` and ``c = palm_columns``, in order:
 

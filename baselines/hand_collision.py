@@ -9,7 +9,7 @@ is known: :func:`hand_features` describes what the cameras saw around one open h
 :class:`HandCollisionNet` maps it to the probability that the hand starts in the object
 (deeper than the protocol's ``invalid_penetration``, the rule that makes a trial invalid).
 
-Features of one hand at pose ``T`` (grasp frame, :mod:`dataset_gen.gripper`), ``F =
+Features of one hand at pose ``T`` (grasp frame, :mod:`dataset_gen.grasps.gripper`), ``F =
 N_VOLUME + GRID ** 3`` float32 values:
 
 * **visibility of the hand's volume** (``N_VOLUME`` = 186 values): for each point of
@@ -40,7 +40,7 @@ from baselines.cloud_grasps import (
     hand_volume_in_object,
     hand_volume_points,
 )
-from dataset_gen.gripper import GripperModel, get_gripper
+from dataset_gen.grasps.gripper import GripperModel, get_gripper
 
 DEPTH_SCALE = 0.05
 """Occlusion depths are clipped to +-this (m) and divided by it."""

@@ -37,9 +37,9 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.atomic import atomic_path
-from dg16m_env.envs.lift_observations import STATE_SIZE, STATE_SLICES, goal_frames, state_vector
-from dg16m_env.envs.lift_spaces import MAX_ROTATION, MAX_TRANSLATION, rotation_vector
+from dg16m_core.atomic import atomic_path
+from dg16m_env.envs.lift.observations import STATE_SIZE, STATE_SLICES, goal_frames, state_vector
+from dg16m_env.envs.lift.spaces import MAX_ROTATION, MAX_TRANSLATION, rotation_vector
 from dg16m_env.envs.spaces import rotation_from_6d
 
 FEATURES = 48

@@ -35,8 +35,8 @@ from baselines.lift_bc_policy import (
     hand_features,
     read_payload,
 )
-from dataset_gen.atomic import atomic_path
-from dg16m_env.envs.lift_observations import state_vector
+from dg16m_core.atomic import atomic_path
+from dg16m_env.envs.lift.observations import state_vector
 
 RESIDUAL_SIZE = 7
 """Residual numbers per hand: 6 motion components (goal frame) and the finger command."""

@@ -3,12 +3,12 @@
 :func:`write_reference_submissions` writes to ``out_dir``:
 
 ``random.h5``, ``farthest.h5``, ``force_closure.h5``
-    the :class:`~baselines.pairing.PairingBaseline` predictions for every benchmark object, run
-    in process (trusted code) on the object's observation
+    the :class:`~baselines.pairing_baselines.PairingBaseline` predictions for every benchmark
+    object, run in process (trusted code) on the object's observation
     (:func:`dg16m_env.subjects.observation.object_observation`) with the benchmark's parameters (grasp
     count, friction, pruning distance, mass, gravity, force bound, threshold). The grasps are
     sampled once per object and shared by the three strategies (the same result as calling
-    each predictor). Objects run in parallel with :func:`dataset_gen.parallel.run_tasks`; the
+    each predictor). Objects run in parallel with :func:`dataset_gen.pipeline.parallel.run_tasks`; the
     files do not depend on ``workers``.
 ``benchmark_fc_pass.h5``
     the benchmark's own stored ``fc_pass`` rows: the first ``k`` per object in stored order,
@@ -36,12 +36,12 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from baselines.pairing import PAIRING_STRATEGIES, BaselineError, PairingBaseline
+from baselines.pairing_baselines import PAIRING_STRATEGIES, BaselineError, PairingBaseline
 from baselines.submission_arguments import DEFAULT_STRATEGIES, add_submission_arguments
-from dataset_gen.checks import check_integer
-from dataset_gen.errors import Dg16mError
 from dataset_gen.io import package_version
-from dataset_gen.parallel import check_backend, run_tasks
+from dataset_gen.pipeline.parallel import check_backend, run_tasks
+from dg16m_core.checks import check_integer
+from dg16m_core.errors import Dg16mError
 from dg16m_env.benchmark.model import SOURCES, Benchmark, BenchmarkObject
 from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
 from dg16m_env.subjects.observation import object_observation
@@ -123,7 +123,7 @@ def predict_object(
     item: BenchmarkObject, mesh_root: str | None, baselines: Sequence[PairingBaseline]
 ) -> dict[str, Prediction | str]:
     """Run several pairing baselines on one benchmark object (a task of
-    :func:`dataset_gen.parallel.run_tasks`); they must share ``seed``, ``n_grasps`` and ``mu``.
+    :func:`dataset_gen.pipeline.parallel.run_tasks`); they must share ``seed``, ``n_grasps`` and ``mu``.
 
     Returns:
         baseline name -> its prediction, or a message when the object or the baseline failed.

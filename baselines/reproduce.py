@@ -30,11 +30,11 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.atomic import atomic_path, write_json_atomic, write_text_atomic
+from dg16m_core.atomic import atomic_path, write_json_atomic, write_text_atomic
 from dg16m_env.benchmark.file import write_benchmark
 from dg16m_env.evaluators import BenchmarkRef, load_benchmark_ref
 
-from .pairing import BaselineError
+from .pairing_baselines import BaselineError
 
 PAPER_TABLE3 = {
     "random": {"fce": 16.33, "gsr": 23.66},
@@ -323,9 +323,9 @@ def fig4(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if data is None:
-        from dataset_gen.generate import GenerationParameters, generate_dataset
-        from dataset_gen.procedural import object_specs
-        from dataset_gen.sources import procedural_sources
+        from dataset_gen.pipeline.generate import GenerationParameters, generate_dataset
+        from dataset_gen.sources.object_source import procedural_sources
+        from dataset_gen.sources.procedural import object_specs
 
         data = out / "data"
         generate_dataset(

@@ -3,17 +3,18 @@ behaviour-cloned policy with the v1 reward (v2's is the same), by learning a cor
 of it.
 
 Reads top to bottom (CleanRL style, after ``ppo_continuous_action.py``): one dataclass of
-arguments, then the run.
+arguments, the pieces of an iteration in the order they run (:func:`collect` a rollout,
+:func:`advantages_and_returns`, :func:`ppo_update`), then the run (:func:`main`).
 
 1. Load the base policy (``policy.pt`` of :mod:`baselines.bc_lift`) and wrap it in a
    :class:`~baselines.lift_residual_policy.LiftResidualPolicy` whose residual starts at zero:
    before any update the policy *is* the base policy (plus the exploration noise).
 2. Roll it out on the training objects (every object not held out by
    :func:`~dg16m_env.envs.objects.split_objects`) in ``num_envs`` environments (batched
-   network calls; v2's registered vector env steps them in this process and a worker, v1's
-   in this process), ``reward_mode="normalized_dense"``: a step pays at most 1, the
-   success step what the steps left could have paid (the v1 bound), so the return is highest
-   for the fastest success. Rewards are multiplied by ``reward_scale`` for the critic.
+   network calls; :class:`~dg16m_env.envs.lift.vector.LiftVectorEnv` steps them in this
+   process and a worker, for v2 and v1 alike), ``reward_mode="normalized_dense"``: a step
+   pays at most 1, the success step what the steps left could have paid (the v1 bound), so
+   the return is highest for the fastest success. Rewards are multiplied by ``reward_scale`` for the critic.
    An episode that reaches ``T`` (200 steps) ends there by the task's definition (``elapsed``
    is observed), so a truncation is treated as an end, not bootstrapped.
 3. PPO on the residual's Gaussian (clipped objective, GAE, advantage normalisation, a KL stop):
@@ -39,6 +40,7 @@ changed nothing) keep the base's procedural held-out rate within its interval.
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -57,14 +59,16 @@ from baselines.lift_residual_policy import (
 )
 from baselines.sb3_common import (
     lift_held_out_evaluators,
+    output_and_split,
     parse_args,
+    print_results,
     uniform_actions,
     write_run,
 )
-from dataset_gen.atomic import atomic_path
-from dg16m_env.envs.lift_demos import ENV_IDS
-from dg16m_env.envs.objects import split_objects
-from dg16m_env.evaluators import EvaluationResult, load_benchmark_ref
+from dg16m_core.atomic import atomic_path
+from dg16m_env.envs.lift.demo_files import ENV_IDS
+from dg16m_env.envs.lift.vector import LiftVectorEnv
+from dg16m_env.evaluators import EvaluationResult
 
 
 @dataclass
@@ -78,7 +82,7 @@ class Args:
     total_timesteps: int = 300_000
     """environment steps of training"""
     num_envs: int = 8
-    """environments stepped together (one process)"""
+    """environments stepped together (LiftVectorEnv: this process and a worker)"""
     num_steps: int = 256
     """steps per environment per rollout"""
     learning_rate: float = 3e-5
@@ -168,6 +172,154 @@ def plot_curve(
         fig.savefig(tmp, format="png", dpi=120)
 
 
+@dataclass
+class Rollout:
+    """One rollout's tensors, ``(steps, envs, ...)``: what PPO's update reads."""
+
+    actor_in: Any
+    critic_in: Any
+    residuals: Any
+    logprobs: Any
+    rewards: Any
+    dones: Any
+    values: Any
+
+    @classmethod
+    def zeros(cls, t: int, n: int) -> Rollout:
+        """Zeroed tensors for ``t`` steps of ``n`` environments."""
+        import torch
+
+        return cls(
+            torch.zeros((t, n, 2, ACTOR_INPUTS)),
+            torch.zeros((t, n, CRITIC_INPUTS)),
+            torch.zeros((t, n, 2, RESIDUAL_SIZE)),
+            *(torch.zeros((t, n)) for _ in range(4)),
+        )
+
+
+def distribution(policy: LiftResidualPolicy, actor_in: Any) -> Any:
+    """The residual's Gaussian for the actor inputs ``actor_in``."""
+    import torch
+
+    return torch.distributions.Normal(policy.actor(actor_in), policy.log_std.exp())
+
+
+def collect(
+    envs: Any, policy: LiftResidualPolicy, buffer: Rollout, state: dict[str, Any], scale: float
+) -> tuple[list[bool], list[float]]:
+    """Fill ``buffer`` with one rollout from ``state`` (the policy's ``inputs``, ``done``, each
+    environment's ``episode_return``: updated in place for the next rollout); the success and
+    return of each episode that ended."""
+    import torch
+
+    finished_success, finished_return = [], []
+    inputs, done, episode_return = state["inputs"], state["done"], state["episode_return"]
+    for step in range(buffer.rewards.shape[0]):
+        a_in, c_in, base_out, to_goal = inputs
+        a_in_t, c_in_t = torch.from_numpy(a_in), torch.from_numpy(c_in)
+        with torch.no_grad():
+            dist = distribution(policy, a_in_t)
+            residual = dist.sample()
+            buffer.values[step] = policy.critic(c_in_t)[:, 0]
+        buffer.actor_in[step], buffer.critic_in[step], buffer.residuals[step] = (
+            a_in_t,
+            c_in_t,
+            residual,
+        )
+        buffer.logprobs[step] = dist.log_prob(residual).sum(dim=(1, 2))
+        buffer.dones[step] = done
+        action = compose_actions(base_out, residual.numpy(), to_goal)
+        obs, reward, terminated, truncated, info = envs.step(action)
+        inputs = policy.inputs(obs)
+        episode_return += reward
+        buffer.rewards[step] = torch.as_tensor(reward * scale, dtype=torch.float32)
+        ended = np.logical_or(terminated, truncated)
+        done = torch.as_tensor(ended, dtype=torch.float32)
+        for k in np.flatnonzero(ended):
+            finished_success.append(bool(info["final_info"]["success"][k]))
+            finished_return.append(float(episode_return[k]))
+            episode_return[k] = 0.0
+    state["inputs"], state["done"] = inputs, done
+    return finished_success, finished_return
+
+
+def advantages_and_returns(
+    policy: LiftResidualPolicy, buffer: Rollout, state: dict[str, Any], args: Args
+) -> tuple[Any, Any]:
+    """GAE over ``buffer``; ``dones[s]`` says the episode ended before step s (its obs is a
+    reset's), ``state`` holds the observation after the rollout."""
+    import torch
+
+    t, n = buffer.rewards.shape
+    values, dones, done = buffer.values, buffer.dones, state["done"]
+    with torch.no_grad():
+        next_value = policy.critic(torch.from_numpy(state["inputs"][1]))[:, 0]
+        advantages = torch.zeros((t, n))
+        last = torch.zeros(n)
+        for s in reversed(range(t)):
+            following = next_value if s == t - 1 else values[s + 1]
+            alive = 1.0 - (done if s == t - 1 else dones[s + 1])
+            delta = buffer.rewards[s] + args.gamma * following * alive - values[s]
+            last = delta + args.gamma * args.gae_lambda * alive * last
+            advantages[s] = last
+        returns = advantages + values
+    return advantages, returns
+
+
+def ppo_update(
+    policy: LiftResidualPolicy,
+    optimiser: Any,
+    buffer: Rollout,
+    advantages: Any,
+    returns: Any,
+    args: Args,
+    iteration: int,
+) -> float:
+    """PPO's epochs over ``buffer`` (the critic only before ``critic_warmup`` iterations); the
+    last approximate KL."""
+    import torch
+
+    actor, critic = policy.actor, policy.critic
+    params = [*actor.parameters(), *critic.parameters(), policy.log_std]
+    batch = buffer.rewards.numel()
+    minibatch = max(batch // args.num_minibatches, 1)
+    b_actor_in, b_critic_in = (
+        buffer.actor_in.reshape(batch, 2, -1),
+        buffer.critic_in.reshape(batch, -1),
+    )
+    b_residuals, b_logprobs = buffer.residuals.reshape(batch, 2, -1), buffer.logprobs.reshape(batch)
+    b_advantages, b_returns = advantages.reshape(batch), returns.reshape(batch)
+    train_actor = iteration >= args.critic_warmup
+    kl = 0.0
+    generator = torch.Generator().manual_seed(args.seed * 100_003 + iteration)
+    for _ in range(args.update_epochs):
+        order = torch.randperm(batch, generator=generator)
+        for first in range(0, batch, minibatch):
+            idx = order[first : first + minibatch]
+            v_loss = 0.5 * ((critic(b_critic_in[idx])[:, 0] - b_returns[idx]) ** 2).mean()
+            loss = args.vf_coef * v_loss
+            if train_actor:
+                dist = distribution(policy, b_actor_in[idx])
+                log_ratio = dist.log_prob(b_residuals[idx]).sum(dim=(1, 2)) - b_logprobs[idx]
+                ratio = log_ratio.exp()
+                with torch.no_grad():
+                    kl = float(((ratio - 1) - log_ratio).mean())
+                adv = b_advantages[idx]
+                adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+                pg_loss = torch.max(
+                    -adv * ratio,
+                    -adv * torch.clamp(ratio, 1 - args.clip_coef, 1 + args.clip_coef),
+                ).mean()
+                loss = loss + pg_loss + args.residual_coef * (dist.mean**2).mean()
+            optimiser.zero_grad()
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(params, args.max_grad_norm)
+            optimiser.step()
+        if train_actor and kl > args.target_kl:
+            break
+    return kl
+
+
 def main() -> None:
     args = parse_args(Args, __doc__.split("\n\n")[0])
     import gymnasium as gym
@@ -188,123 +340,29 @@ def main() -> None:
     except ValueError as exc:
         raise SystemExit(f"--base-policy: {exc}") from None
     policy = LiftResidualPolicy.from_base(base, args.hidden, args.init_std)
-    actor, critic, log_std = policy.actor, policy.critic, policy.log_std
-    params = [*actor.parameters(), *critic.parameters(), log_std]
+    params = [*policy.actor.parameters(), *policy.critic.parameters(), policy.log_std]
     optimiser = torch.optim.Adam(params, lr=args.learning_rate, eps=1e-5)
-    args.out.mkdir(parents=True, exist_ok=True)
-
-    ref = load_benchmark_ref()
-    train_ids, test_ids = split_objects(list(ref.object_ids))
-    same_step = gym.vector.AutoresetMode.SAME_STEP
-    if gym.spec(args.env_id).vector_entry_point is not None:  # v2: LiftVectorEnv, 2 processes
-        envs = gym.make_vec(
-            args.env_id,
-            num_envs=args.num_envs,
-            autoreset_mode=same_step,
-            object_ids=train_ids,
-            reward_mode=args.reward_mode,
-        )
-    else:  # v1: in this process
-        envs = gym.make_vec(
-            args.env_id,
-            num_envs=args.num_envs,
-            vectorization_mode="sync",
-            vector_kwargs={"autoreset_mode": same_step},
-            object_ids=train_ids,
-            reward_mode=args.reward_mode,
-        )
-
-    n, t = args.num_envs, args.num_steps
-    batch = n * t
-    minibatch = max(batch // args.num_minibatches, 1)
-    iterations = max(args.total_timesteps // batch, 1)
-    actor_in = torch.zeros((t, n, 2, ACTOR_INPUTS))
-    critic_in = torch.zeros((t, n, CRITIC_INPUTS))
-    residuals = torch.zeros((t, n, 2, RESIDUAL_SIZE))
-    logprobs, rewards, dones, values = (torch.zeros((t, n)) for _ in range(4))
-
-    def distribution(x: Any) -> Any:
-        return torch.distributions.Normal(actor(x), log_std.exp())
+    train_ids, test_ids = output_and_split(args.out)
+    make = functools.partial(
+        gym.make, args.env_id, object_ids=train_ids, reward_mode=args.reward_mode
+    )
+    envs = LiftVectorEnv([make] * args.num_envs, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
 
     # --- training --------------------------------------------------------------------------
+    n, t = args.num_envs, args.num_steps
+    iterations = max(args.total_timesteps // (n * t), 1)
+    buffer = Rollout.zeros(t, n)
     started = time.perf_counter()
     obs, _ = envs.reset(seed=args.train_seed)
-    inputs = policy.inputs(obs)
-    done = torch.zeros(n)
-    episode_return = np.zeros(n)
+    state = {"inputs": policy.inputs(obs), "done": torch.zeros(n), "episode_return": np.zeros(n)}
     curve: list[dict[str, float]] = []
     timesteps = 0
     bar = tqdm(range(iterations), desc="residual PPO", unit="iteration")
     for iteration in bar:
-        finished_success, finished_return = [], []
-        for step in range(t):
-            a_in, c_in, base_out, to_goal = inputs
-            a_in_t, c_in_t = torch.from_numpy(a_in), torch.from_numpy(c_in)
-            with torch.no_grad():
-                dist = distribution(a_in_t)
-                residual = dist.sample()
-                values[step] = critic(c_in_t)[:, 0]
-            actor_in[step], critic_in[step], residuals[step] = a_in_t, c_in_t, residual
-            logprobs[step] = dist.log_prob(residual).sum(dim=(1, 2))
-            dones[step] = done
-            action = compose_actions(base_out, residual.numpy(), to_goal)
-            obs, reward, terminated, truncated, info = envs.step(action)
-            inputs = policy.inputs(obs)
-            timesteps += n
-            episode_return += reward
-            rewards[step] = torch.as_tensor(reward * args.reward_scale, dtype=torch.float32)
-            ended = np.logical_or(terminated, truncated)
-            done = torch.as_tensor(ended, dtype=torch.float32)
-            for k in np.flatnonzero(ended):
-                finished_success.append(bool(info["final_info"]["success"][k]))
-                finished_return.append(float(episode_return[k]))
-                episode_return[k] = 0.0
-
-        # GAE; ``dones[s]`` says the episode ended before step s (its obs is a reset's)
-        with torch.no_grad():
-            next_value = critic(torch.from_numpy(inputs[1]))[:, 0]
-            advantages = torch.zeros((t, n))
-            last = torch.zeros(n)
-            for s in reversed(range(t)):
-                following = next_value if s == t - 1 else values[s + 1]
-                alive = 1.0 - (done if s == t - 1 else dones[s + 1])
-                delta = rewards[s] + args.gamma * following * alive - values[s]
-                last = delta + args.gamma * args.gae_lambda * alive * last
-                advantages[s] = last
-            returns = advantages + values
-
-        b_actor_in, b_critic_in = actor_in.reshape(batch, 2, -1), critic_in.reshape(batch, -1)
-        b_residuals, b_logprobs = residuals.reshape(batch, 2, -1), logprobs.reshape(batch)
-        b_advantages, b_returns = advantages.reshape(batch), returns.reshape(batch)
-        train_actor = iteration >= args.critic_warmup
-        kl = 0.0
-        generator = torch.Generator().manual_seed(args.seed * 100_003 + iteration)
-        for _ in range(args.update_epochs):
-            order = torch.randperm(batch, generator=generator)
-            for first in range(0, batch, minibatch):
-                idx = order[first : first + minibatch]
-                v_loss = 0.5 * ((critic(b_critic_in[idx])[:, 0] - b_returns[idx]) ** 2).mean()
-                loss = args.vf_coef * v_loss
-                if train_actor:
-                    dist = distribution(b_actor_in[idx])
-                    log_ratio = dist.log_prob(b_residuals[idx]).sum(dim=(1, 2)) - b_logprobs[idx]
-                    ratio = log_ratio.exp()
-                    with torch.no_grad():
-                        kl = float(((ratio - 1) - log_ratio).mean())
-                    adv = b_advantages[idx]
-                    adv = (adv - adv.mean()) / (adv.std() + 1e-8)
-                    pg_loss = torch.max(
-                        -adv * ratio,
-                        -adv * torch.clamp(ratio, 1 - args.clip_coef, 1 + args.clip_coef),
-                    ).mean()
-                    loss = loss + pg_loss + args.residual_coef * (dist.mean**2).mean()
-                optimiser.zero_grad()
-                loss.backward()
-                torch.nn.utils.clip_grad_norm_(params, args.max_grad_norm)
-                optimiser.step()
-            if train_actor and kl > args.target_kl:
-                break
-
+        finished_success, finished_return = collect(envs, policy, buffer, state, args.reward_scale)
+        timesteps += n * t
+        advantages, returns = advantages_and_returns(policy, buffer, state, args)
+        kl = ppo_update(policy, optimiser, buffer, advantages, returns, args, iteration)
         if finished_success:
             curve.append(
                 {
@@ -313,14 +371,14 @@ def main() -> None:
                     "success": float(np.mean(finished_success)),
                     "return": float(np.mean(finished_return)),
                     "kl": kl,
-                    "std": float(log_std.detach().exp().mean()),
+                    "std": float(policy.log_std.detach().exp().mean()),
                 }
             )
             bar.set_postfix(success=f"{curve[-1]['success']:.2f}", std=f"{curve[-1]['std']:.3f}")
     envs.close()
     train_s = time.perf_counter() - started
-    actor.eval()
-    critic.eval()
+    policy.actor.eval()
+    policy.critic.eval()
     policy.save(args.out / "policy.pt")
 
     # --- evaluation on held-out objects -------------------------------------------------------
@@ -352,9 +410,7 @@ def main() -> None:
         train_seconds=train_s,
         eval_seconds=eval_s,
     )
-    for name, result in results.items():
-        print(f"{name:<17} {result.format().splitlines()[1].strip()}")
-    print(f"wrote {args.out}")
+    print_results(results, args.out)
 
 
 if __name__ == "__main__":

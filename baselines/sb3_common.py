@@ -1,20 +1,24 @@
-"""What the stable-baselines3 scripts share: argument parsing from a dataclass, the learning
-curve (mean reward per PPO/SAC rollout), its plot, and the results file."""
+"""What the baseline training scripts share (the stable-baselines3 ones, ``bc_lift`` and
+``residual_lift``): argument parsing from a dataclass, the output folder and the benchmark's
+object split, the training environments, training with a learning curve (mean reward per
+PPO/SAC rollout) and an atomic checkpoint, the held-out ``policy`` evaluators, the curve's
+plot, the results file and the printed summary."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import time
 from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
 from matplotlib.figure import Figure
 
-from dataset_gen.atomic import atomic_path, write_json_atomic
 from dataset_gen.io import package_version
+from dg16m_core.atomic import atomic_path, write_json_atomic
 from dg16m_env.envs.objects import split_objects as split_objects  # its home before issue 40
-from dg16m_env.evaluators import EvaluationResult
+from dg16m_env.evaluators import EvaluationResult, load_benchmark_ref, make
 
 A = TypeVar("A")
 
@@ -58,6 +62,46 @@ def parse_args(cls: type[A], description: str, argv: list[str] | None = None) ->
             flag, type=kind, default=field.default, help=f"{text} (default: %(default)s)"
         )
     return cls(**vars(parser.parse_args(argv)))
+
+
+def output_and_split(out: Path) -> tuple[list[str], list[str]]:
+    """Make the output folder ``out``; the procedural benchmark's training and held-out object
+    ids (:func:`split_objects`: every third object held out)."""
+    out.mkdir(parents=True, exist_ok=True)
+    return split_objects(list(load_benchmark_ref().object_ids))
+
+
+def training_envs(env_id: str, args: Any, env_kwargs: dict[str, Any], **options: Any) -> Any:
+    """SB3's ``make_vec_env`` of ``args.n_envs`` environments of ``env_id`` seeded from
+    ``args.seed`` (``options``: its other keywords, e.g. ``wrapper_class``)."""
+    from stable_baselines3.common.env_util import make_vec_env
+
+    return make_vec_env(
+        env_id, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs, **options
+    )
+
+
+def learn(model: Any, args: Any, curve: Any, checkpoint: str) -> float:
+    """Train ``model`` for ``args.total_timesteps`` with the learning-curve callback ``curve``
+    and save it to ``args.out / checkpoint`` (:func:`save_model`); the training seconds."""
+    started = time.perf_counter()
+    model.learn(total_timesteps=args.total_timesteps, callback=curve)
+    seconds = time.perf_counter() - started
+    save_model(model, args.out / checkpoint)
+    return seconds
+
+
+def policy_evaluator(env_id: str, episodes: int, seed: int, env_kwargs: dict[str, Any]) -> Any:
+    """The registered ``policy`` evaluator: ``episodes`` seeded episodes (reset seeds ``seed +
+    i``) of ``env_id`` made with ``env_kwargs``, with a progress bar."""
+    return make(
+        "policy",
+        env_id=env_id,
+        n_episodes=episodes,
+        seed=seed,
+        env_kwargs=env_kwargs,
+        progress=True,
+    )
 
 
 def _boolean(text: str) -> bool:
@@ -162,9 +206,14 @@ def report(
         learning_curve=curve.points,
         **facts,
     )
+    print_results(results, args.out)
+
+
+def print_results(results: dict[str, EvaluationResult], out: Path) -> None:
+    """Each policy's success rate (one line each), then the output folder."""
     for name, result in results.items():
         print(f"{name:<17} {result.format().splitlines()[1].strip()}")
-    print(f"wrote {args.out}")
+    print(f"wrote {out}")
 
 
 def save_model(model: Any, path: Path) -> None:
@@ -204,25 +253,10 @@ def lift_held_out_evaluators(
     (reset seeds ``seed + i``) on the procedural benchmark's held-out objects ``test_ids``, and
     ``real_episodes`` on the real benchmark's held-out objects with the same seeds (None when
     ``real_episodes`` is 0)."""
-    from dg16m_env.evaluators import load_benchmark_ref, make
-
-    evaluator = make(
-        "policy",
-        env_id=env_id,
-        n_episodes=episodes,
-        seed=seed,
-        env_kwargs={"object_ids": test_ids},
-        progress=True,
-    )
+    evaluator = policy_evaluator(env_id, episodes, seed, {"object_ids": test_ids})
     if not real_episodes:
         return evaluator, None
     real = load_benchmark_ref("real", lazy=True)
-    real_evaluator = make(
-        "policy",
-        env_id=env_id,
-        n_episodes=real_episodes,
-        seed=seed,
-        env_kwargs={"benchmark": "real", "object_ids": split_objects(list(real.object_ids))[1]},
-        progress=True,
-    )
-    return evaluator, real_evaluator
+    real_ids = split_objects(list(real.object_ids))[1]
+    kwargs = {"benchmark": "real", "object_ids": real_ids}
+    return evaluator, policy_evaluator(env_id, real_episodes, seed, kwargs)

@@ -25,15 +25,16 @@ from pathlib import Path
 
 import dg16m_env  # noqa: F401  registers the environments
 from baselines.sb3_common import (
+    learn,
+    output_and_split,
     parse_args,
+    policy_evaluator,
     report,
     reward_curve_callback,
-    save_model,
-    split_objects,
+    training_envs,
     uniform_actions,
 )
-from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
-from dg16m_env.evaluators import load_benchmark_ref, make
+from dg16m_env.envs.lift.experts import ScriptedLiftPolicy
 
 ENV_ID = "dg16m_env/DualGraspLift-v0"
 
@@ -69,23 +70,15 @@ class Args:
 def main() -> None:
     args = parse_args(Args, __doc__.split("\n\n")[0])
     from stable_baselines3 import PPO
-    from stable_baselines3.common.env_util import make_vec_env
 
-    args.out.mkdir(parents=True, exist_ok=True)
-    ref = load_benchmark_ref()
-    train_ids, test_ids = split_objects(ref.object_ids)
+    train_ids, test_ids = output_and_split(args.out)
     skip = {"shelf-1000011", "barrel_with_handles-1000006"}  # no benchmark grasp to target
     train_ids = [i for i in train_ids if i not in skip]
     test_ids = [i for i in test_ids if i not in skip]
     env_kwargs = {"target_grasp": "benchmark"}
 
     # --- training ------------------------------------------------------------------------------
-    train_env = make_vec_env(
-        ENV_ID,
-        n_envs=args.n_envs,
-        seed=args.seed,
-        env_kwargs={**env_kwargs, "object_ids": train_ids},
-    )
+    train_env = training_envs(ENV_ID, args, {**env_kwargs, "object_ids": train_ids})
     curve = reward_curve_callback()
     model = PPO(
         "MlpPolicy",
@@ -100,19 +93,11 @@ def main() -> None:
         device="cpu",
         verbose=0,
     )
-    started = time.perf_counter()
-    model.learn(total_timesteps=args.total_timesteps, callback=curve)
-    train_s = time.perf_counter() - started
-    save_model(model, args.out / "ppo_lift.zip")
+    train_s = learn(model, args, curve, "ppo_lift.zip")
 
     # --- evaluation on held-out objects ---------------------------------------------------------
-    evaluator = make(
-        "policy",
-        env_id=ENV_ID,
-        n_episodes=args.eval_episodes,
-        seed=args.eval_seed,
-        env_kwargs={**env_kwargs, "object_ids": test_ids},
-        progress=True,
+    evaluator = policy_evaluator(
+        ENV_ID, args.eval_episodes, args.eval_seed, {**env_kwargs, "object_ids": test_ids}
     )
     started = time.perf_counter()
     results = {

@@ -35,15 +35,16 @@ from typing import Any
 
 import dg16m_env  # noqa: F401  registers the environments
 from baselines.sb3_common import (
+    learn,
+    output_and_split,
     parse_args,
+    policy_evaluator,
     report,
     reward_curve_callback,
-    save_model,
-    split_objects,
+    training_envs,
     uniform_actions,
 )
 from dg16m_env.envs.dual_grasp_pose import ACTION_MODES
-from dg16m_env.evaluators import load_benchmark_ref, make
 
 ENV_ID = "dg16m_env/DualGraspPose-v0"
 ALGOS = ("sac", "ppo")
@@ -89,22 +90,14 @@ def main() -> None:
     if args.algo not in ALGOS:
         raise SystemExit(f"--algo: expected one of {ALGOS}, found {args.algo!r}")
     from stable_baselines3 import PPO, SAC
-    from stable_baselines3.common.env_util import make_vec_env
 
-    args.out.mkdir(parents=True, exist_ok=True)
-    ref = load_benchmark_ref()
-    train_ids, test_ids = split_objects(ref.object_ids)
+    train_ids, test_ids = output_and_split(args.out)
     env_kwargs = {"n_points": args.n_points, "fc_info": False, "action_mode": args.action_mode}
     if args.action_mode == "pose":
         del env_kwargs["action_mode"]  # the registered default, as before the option existed
 
     # --- training ------------------------------------------------------------------------------
-    train_env = make_vec_env(
-        ENV_ID,
-        n_envs=args.n_envs,
-        seed=args.seed,
-        env_kwargs={**env_kwargs, "object_ids": train_ids},
-    )
+    train_env = training_envs(ENV_ID, args, {**env_kwargs, "object_ids": train_ids})
     curve = reward_curve_callback()
     common = {"learning_rate": args.learning_rate, "batch_size": args.batch_size, "gamma": 0.0}
     if args.algo == "sac":
@@ -129,21 +122,13 @@ def main() -> None:
             verbose=0,
             **common,
         )
-    started = time.perf_counter()
-    model.learn(total_timesteps=args.total_timesteps, callback=curve)
-    train_s = time.perf_counter() - started
     suffix = "" if args.action_mode == "pose" else f"_{args.action_mode}"
-    save_model(model, args.out / f"{args.algo}_pose{suffix}.zip")
+    train_s = learn(model, args, curve, f"{args.algo}_pose{suffix}.zip")
 
     # --- evaluation on held-out objects ---------------------------------------------------------
     def evaluator(kwargs: dict[str, Any]) -> Any:
-        return make(
-            "policy",
-            env_id=ENV_ID,
-            n_episodes=args.eval_episodes,
-            seed=args.eval_seed,
-            env_kwargs={**kwargs, "object_ids": test_ids},
-            progress=True,
+        return policy_evaluator(
+            ENV_ID, args.eval_episodes, args.eval_seed, {**kwargs, "object_ids": test_ids}
         )
 
     shape = tuple(int(n) for n in train_env.action_space.shape)  # type: ignore[union-attr]

@@ -41,8 +41,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from baselines.cloud_grasps import Cloud, CloudError, DepthViews, check_cloud
-from dataset_gen.atomic import atomic_path
-from dataset_gen.checks import check_integer
+from dg16m_core.atomic import atomic_path
+from dg16m_core.checks import check_integer
 
 FIT_CLIP = 0.05
 """A cloud point's distance to the placed shape counts at most this much in the fit (m): a few
@@ -160,10 +160,10 @@ class ShapeLibrary:
 @functools.lru_cache(maxsize=4)
 def procedural_library(per_family: int = 20, n_points: int = 2048, seed: int = 0) -> ShapeLibrary:
     """The library of procedural training objects: seeds ``0 .. per_family - 1`` of each of the
-    benchmark's families (:mod:`dataset_gen.procedural`; train seeds only, never a benchmark
+    benchmark's families (:mod:`dataset_gen.sources.procedural`; train seeds only, never a benchmark
     seed), each in its observation frame (:func:`dg16m_env.subjects.observation.object_observation`),
     built once per process (about 0.03 s per shape)."""
-    from dataset_gen.procedural import (
+    from dataset_gen.sources.procedural import (
         FAMILIES,
         N_BENCHMARK_FAMILIES,
         make_procedural_object,

@@ -44,7 +44,7 @@ from baselines.classifier_data import (
 )
 from baselines.da2_labels import roc_auc
 from baselines.sb3_common import parse_args, write_run
-from dataset_gen.atomic import atomic_path, write_json_atomic
+from dg16m_core.atomic import atomic_path, write_json_atomic
 
 MODELS = ("cgdf", "pointnetgpd")
 

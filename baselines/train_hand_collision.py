@@ -1,6 +1,6 @@
 """Train the hand-collision check of the partial-cloud predictors (:mod:`baselines.hand_collision`).
 
-Reads top to bottom: for each procedural training object (``dataset_gen.procedural`` train split,
+Reads top to bottom: for each procedural training object (``dataset_gen.sources.procedural`` train split,
 never a benchmark seed), the two-camera cloud of :data:`baselines.cloud_predictor.PARTIAL_SAMPLER`'s
 predictor, its dual candidates, every open hand's features (:func:`hand_features`) and its truth
 (:func:`dg16m_env.physics.trial_protocol.open_hand_penetration` deeper than the protocol's
@@ -30,9 +30,9 @@ from baselines.cloud_predictor import SEED_PREFIX, cgdf_partial_predictor
 from baselines.da2_labels import roc_auc
 from baselines.hand_collision import DEPTH_SCALE, GRID, hand_features, make_net, n_features
 from baselines.sb3_common import parse_args
-from dataset_gen.atomic import atomic_path
-from dataset_gen.procedural import FAMILIES, N_BENCHMARK_FAMILIES, make_procedural_object
-from dataset_gen.sources import object_seed
+from dataset_gen.sources.object_source import object_seed
+from dataset_gen.sources.procedural import FAMILIES, N_BENCHMARK_FAMILIES, make_procedural_object
+from dg16m_core.atomic import atomic_path
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ class Args:
 def object_hands(spec: tuple[str, int, int]) -> tuple[str, np.ndarray, np.ndarray]:
     """One training object's hands: ``(object id, features (H, F) float32, starts_inside (H,)
     bool)``; ``H = 2 x`` its dual candidates."""
-    from dataset_gen.parameters import PROTOCOL
+    from dg16m_core.parameters import PROTOCOL
     from dg16m_env.physics.scene import compile_scene
     from dg16m_env.physics.trial_protocol import open_hand_penetration
     from dg16m_env.subjects.observation import object_observation

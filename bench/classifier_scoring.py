@@ -42,7 +42,7 @@ import torch
 from baselines.cgdf_classifier import CGDFClassifier
 from baselines.dual_pointnet_gpd import DualPointNetGPD
 from baselines.grasp_geometry import count_parameters, grasp_centre_local
-from dataset_gen.atomic import write_json_atomic
+from dg16m_core.atomic import write_json_atomic
 from dg16m_env.evaluators import load_benchmark_ref
 from dg16m_env.subjects.observation import object_observation
 

@@ -10,7 +10,7 @@ Times, each in a fresh subprocess, best (and median) of ``--runs`` runs after on
 
 and prints each time with its ratio to the reference (the machine is shared and noisy; the ratio
 travels better than the seconds). ``dg16m`` is the console script next to this interpreter
-(``python -m dataset_gen.cli`` where there is none). Target: ``dg16m --help`` within 0.5 s on a
+(``python -m dg16m_core.cli`` where there is none). Target: ``dg16m --help`` within 0.5 s on a
 quiet machine.
 
     .venv/bin/python bench/cli_startup.py               # ~10 s
@@ -28,7 +28,7 @@ import sys
 import time
 from pathlib import Path
 
-from dataset_gen.atomic import write_text_atomic
+from dg16m_core.atomic import write_text_atomic
 
 TARGET_HELP_S = 0.5
 """``dg16m --help`` on a quiet machine (s)."""
@@ -39,7 +39,7 @@ def dg16m_command() -> list[str]:
     script = Path(sys.executable).parent / "dg16m"
     if script.is_file():
         return [str(script)]
-    return [sys.executable, "-m", "dataset_gen.cli"]
+    return [sys.executable, "-m", "dg16m_core.cli"]
 
 
 def time_command(command: list[str], runs: int) -> list[float]:

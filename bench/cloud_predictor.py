@@ -49,7 +49,7 @@ from baselines.cloud_predictor import (
     random_partial_predictor,
     random_predictor,
 )
-from dataset_gen.atomic import write_json_atomic
+from dg16m_core.atomic import write_json_atomic
 from dg16m_env.evaluators import load_benchmark_ref
 from dg16m_env.subjects.observation import object_observation
 

@@ -5,11 +5,11 @@ For each mesh, on one core and without the cache:
 * old: CoACD's own ``preprocess_mode="auto"`` (it voxel-remeshes meshes it calls non-manifold,
   including watertight ones that trimesh and manifold3d accept) at threshold 0.05, the settings
   dg16m used before;
-* new: :class:`dataset_gen.decomposition.DecompositionParameters` defaults (our "auto": the voxel
+* new: :class:`dataset_gen.objects.decomposition.DecompositionParameters` defaults (our "auto": the voxel
   repair only for meshes that are not a volume; the default threshold).
 
 Prints faces, watertightness, then per setting the hull count, the one-sided hull-to-mesh
-deviation (p95 and max, mm; :func:`dataset_gen.decomposition.decomposition_report`), the extra
+deviation (p95 and max, mm; :func:`dataset_gen.objects.decomposition.decomposition_report`), the extra
 volume and the time, and the time ratio new/old. Meshes are loaded as dg16m loads them (object
 frame); a mesh next to a grasp file of the same stem (``NAME.h5``, DG16M or ACRONYM) gets that
 file's scale, as ``dg16m sim`` does.
@@ -36,11 +36,11 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen import decomposition as dec
-from dataset_gen.atomic import write_json_atomic
-from dataset_gen.errors import Dg16mError
-from dataset_gen.json_values import json_ready
-from dataset_gen.objects import MESH_SUFFIXES, load_object
+from dataset_gen.objects import decomposition as dec
+from dataset_gen.objects.grasp_object import MESH_SUFFIXES, load_object
+from dg16m_core.atomic import write_json_atomic
+from dg16m_core.errors import Dg16mError
+from dg16m_core.json_values import json_ready
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_FOLDERS = (ROOT / "tests" / "data" / "meshes", ROOT.parent / "shared" / "data" / "real")

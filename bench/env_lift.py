@@ -5,7 +5,7 @@ For each object (default: the first object of each family in the shipped benchma
 
 * **random**: episodes of seeded random actions (each up to the registered 200 steps, or until
   it terminates); only ``env.step`` is timed.
-* **scripted**: episodes of :class:`~dg16m_env.envs.lift_expert.ScriptedLiftPolicy`
+* **scripted**: episodes of :class:`~dg16m_env.envs.lift.experts.ScriptedLiftPolicy`
   (approach, grasp, lift, hold); ``env.step`` is timed apart from the policy, successes counted.
 * **reference** (of each): the bare ``mujoco.mj_step`` loop of the same compiled model for the
   same simulated time. Each run is replayed once more (seeded, so identical) with
@@ -27,7 +27,7 @@ subprocesses whose ``PYTHONPATH`` picks the tree, the two trees alternating ``--
 (medians; the machine is noisy, read the ratios):
 
 * **random** / **scripted**: steps/s of ``env.step`` of one ``gym.make`` environment (random
-  actions without a target; :class:`~dg16m_env.envs.lift_expert.ScriptedLiftPolicy` with the
+  actions without a target; :class:`~dg16m_env.envs.lift.experts.ScriptedLiftPolicy` with the
   benchmark's target), seeded: both trees run the same episodes when their behaviour is the
   same (checked: a sha256 of every observation and reward);
 * **vector**: a 2-worker ``gymnasium.vector.AsyncVectorEnv`` (what ``gym.make_vec(...,
@@ -93,9 +93,11 @@ import gymnasium
 import mujoco
 import numpy as np
 
-from dataset_gen.atomic import write_json_atomic
-from dg16m_env.envs.dual_grasp_lift import ACTION_SIZE, DualGraspLiftEnv, use_timestep
-from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
+from dg16m_core.atomic import write_json_atomic
+from dg16m_env.envs.lift.experts import ScriptedLiftPolicy
+from dg16m_env.envs.lift.scenes import use_timestep
+from dg16m_env.envs.lift.spaces import ACTION_SIZE
+from dg16m_env.envs.lift.v0 import DualGraspLiftEnv
 from dg16m_env.envs.objects import BenchmarkObjects
 
 TARGET_STEPS_PER_S = 500.0
@@ -430,23 +432,22 @@ def probe_batched(
     steps: int, seed: int, env_id: str, num_envs: int = 16, rounds: int = 15
 ) -> dict[str, Any]:
     """Steps/s of ``LiftVectorEnv`` (``num_envs`` environments) with 2 workers (polling
-    ``spin_s`` as by default, and sleeping at once: ``spin_s=0``) and with 1 worker against
+    ``spin_s`` = 1 ms, and sleeping at once: ``spin_s=0``, the default) and with 1 worker against
     one env in this process (same object, random actions, autoreset), interleaved in
     slices of about ``steps`` env steps (:func:`_interleaved`, ``rounds`` rounds: medians and
     quartiles of the ratios); and the machine's own ceiling: two free-running processes of
     pure-Python work against the same work in one, interleaved the same way."""
-    from dg16m_env.envs.lift_vector import LiftVectorEnv
+    from dg16m_env.envs.lift.vector import LiftVectorEnv
 
     if hasattr(os, "sched_getaffinity") and len(os.sched_getaffinity(0)) < (os.cpu_count() or 1):
         print(f"note: this process may use CPUs {sorted(os.sched_getaffinity(0))} only")
     single = _lift(env_id, object_ids=[VECTOR_OBJECT])
     single.action_space.seed(seed)
     single.reset(seed=seed)
+    make = functools.partial(_lift, env_id, object_ids=[VECTOR_OBJECT])
     vectors = {  # name: (workers, spin_s)
-        name: LiftVectorEnv(
-            num_envs, workers=w, spin_s=spin, env_id=env_id, object_ids=[VECTOR_OBJECT]
-        )
-        for name, (w, spin) in {"w2": (2, None), "w2_sleep": (2, 0.0), "w1": (1, None)}.items()
+        name: LiftVectorEnv([make] * num_envs, workers=w, spin_s=spin)
+        for name, (w, spin) in {"w2": (2, 0.001), "w2_sleep": (2, 0.0), "w1": (1, 0.0)}.items()
     }
     for envs in vectors.values():
         envs.action_space.seed(seed)

@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.atomic import write_json_atomic
+from dg16m_core.atomic import write_json_atomic
 from dg16m_env.envs.dual_grasp_pose import DualGraspPoseEnv
 from dg16m_env.envs.dual_grasp_select import DualGraspSelectEnv
 from dg16m_env.envs.spaces import action_from_poses

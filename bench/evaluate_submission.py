@@ -29,7 +29,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from dataset_gen.atomic import write_json_atomic
+from dg16m_core.atomic import write_json_atomic
 from dg16m_env.benchmark.file import read_benchmark, write_benchmark
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.evaluators import load_benchmark_ref, make

@@ -48,7 +48,7 @@ import numpy as np
 from dataset_gen.force_closure import SOLVED_CLARABEL_TIGHT, evaluate, grasp_matrix
 from dataset_gen.force_closure.clarabel_solver import ClarabelBatch, best_of, solve_batch
 from dataset_gen.force_closure.synthetic import FAMILIES, family_pairs
-from dataset_gen.parameters import PAPER
+from dg16m_core.parameters import PAPER
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 
@@ -387,7 +387,7 @@ def main() -> None:
         mask = names == name
         print(f"  {name:15s} pass {reference.passed[mask].mean():.3f}")
     if args.json:
-        from dataset_gen.atomic import write_json_atomic
+        from dg16m_core.atomic import write_json_atomic
 
         write_json_atomic(
             Path(args.json), {"convention": args.convention, "rows": rows, "near_threshold": near}

@@ -40,18 +40,18 @@ from typing import Any
 
 import numpy as np
 
-import dataset_gen.gripper as gripper_module
-from dataset_gen.generate import (
+import dataset_gen.grasps.gripper as gripper_module
+from dataset_gen.grasps.gripper import ContactStatus, nearest_hits
+from dataset_gen.grasps.pairing import strategy_pass_rates
+from dataset_gen.grasps.sampling import sample_antipodal_grasps
+from dataset_gen.io import write_dg16m
+from dataset_gen.pipeline.generate import (
     GenerationParameters,
     StageTimes,
     generate_object,
 )
-from dataset_gen.gripper import ContactStatus, nearest_hits
-from dataset_gen.io import write_dg16m
-from dataset_gen.pairing import strategy_pass_rates
-from dataset_gen.procedural import object_specs
-from dataset_gen.sampling import sample_antipodal_grasps
-from dataset_gen.sources import ObjectSource, object_seed, procedural_sources
+from dataset_gen.sources.object_source import ObjectSource, object_seed, procedural_sources
+from dataset_gen.sources.procedural import object_specs
 
 ROOT = Path(__file__).resolve().parents[1]
 REAL = ROOT.parent / "shared" / "data" / "real"
@@ -306,7 +306,7 @@ def main() -> None:
             f"force-closure candidates {a['force_closure']:.3f}  (selected passing pairs: 1.000)"
         )
     if args.json:
-        from dataset_gen.atomic import write_json_atomic
+        from dg16m_core.atomic import write_json_atomic
 
         write_json_atomic(Path(args.json), {"rows": rows, "mean_procedural_seconds": mean})
 

@@ -19,7 +19,7 @@ every object is eligible):
   machine that built the file everything must be identical (same computation); on another
   machine this measures cross-machine agreement (CPU model and numpy / MuJoCo versions printed).
 
-Objects are independent tasks (``--workers`` processes, :func:`dataset_gen.parallel.run_tasks`),
+Objects are independent tasks (``--workers`` processes, :func:`dataset_gen.pipeline.parallel.run_tasks`),
 each compiled the way the benchmark did (``BenchmarkObject.load`` + ``compile_scene`` with the
 file's scene parameters and the stored convex parts). The same arguments give the same sample and
 the same labels.
@@ -50,10 +50,10 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from dataset_gen.atomic import write_json_atomic
-from dataset_gen.errors import Dg16mError
-from dataset_gen.json_values import json_ready
-from dataset_gen.parallel import run_tasks
+from dataset_gen.pipeline.parallel import run_tasks
+from dg16m_core.atomic import write_json_atomic
+from dg16m_core.errors import Dg16mError
+from dg16m_core.json_values import json_ready
 from dg16m_env.benchmark.file import read_benchmark
 from dg16m_env.benchmark.model import SOURCES, Benchmark, BenchmarkObject
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK

@@ -8,8 +8,12 @@ Runs, in a scratch folder, the three things a moved or cut module could change:
    rows, against it: the sha256 of each result's scores (the JSON without times, dates and
    the package version);
 3. one seeded episode of each environment (``DualGraspPose``, ``DualGraspSelect`` with random
-   actions; ``DualGraspLift`` driven by the scripted expert with the benchmark's grasp): the
-   sha256 of every observation, reward, flag and ``info`` value.
+   actions; ``DualGraspLift-v0`` driven by the scripted expert with the benchmark's grasp;
+   ``DualGraspLift-v1`` and ``-v2`` with random actions and driven by the feedback expert): the
+   sha256 of every observation, reward, flag and ``info`` value;
+4. ``dg16m objects make --count 3`` (meshes, convex parts, manifest) and ``dg16m generate
+   --procedural 20 --workers 2``: the sha256 of every file's content (HDF5 files by their
+   datasets and attributes; manifests without their times).
 
 Prints one JSON object (``--out`` writes it too). Run it on two trees and compare::
 
@@ -24,8 +28,8 @@ Prints one JSON object (``--out`` writes it too). Run it on two trees and compar
         bench/layout_digest.py --out /tmp/before.json
     diff /tmp/before.json /tmp/after.json
 
-The command line is run as ``python -c 'from dataset_gen.cli import main; main()'`` so that
-``PYTHONPATH`` picks the tree. Same machine, same bytes; across CPUs physics may differ in the
+The command line is run as ``python -c 'from dg16m_core.cli import main; main()'``
+(``dataset_gen.cli`` in a tree from before the kernel) so that ``PYTHONPATH`` picks the tree. Same machine, same bytes; across CPUs physics may differ in the
 last bits (see DESIGN.md), so compare digests made on one machine. About a minute on 2 cores.
 """
 
@@ -44,7 +48,10 @@ from typing import Any
 import h5py
 import numpy as np
 
-from dataset_gen.atomic import write_text_atomic
+try:
+    from dg16m_core.atomic import write_text_atomic
+except ImportError:  # a tree from before the kernel package
+    from dataset_gen.atomic import write_text_atomic
 
 # Keys of a result that record when, where and with what it ran, not what it measured (``file``:
 # the submission's path, in a scratch folder).
@@ -61,7 +68,12 @@ VOLATILE_KEYS = {
 
 def dg16m(*args: str) -> None:
     """Run a ``dg16m`` command of the tree on ``PYTHONPATH`` (raises on a non-zero exit)."""
-    code = "import sys; from dataset_gen.cli import main; sys.exit(main())"
+    code = (
+        "import sys\n"
+        "try:\n    from dg16m_core.cli import main\n"
+        "except ImportError:\n    from dataset_gen.cli import main\n"
+        "sys.exit(main())"
+    )
     subprocess.run([sys.executable, "-c", code, *args], check=True)
 
 
@@ -104,20 +116,43 @@ def write_submission(bench_file: Path, path: Path, rows: int = 6) -> None:
             g["scores"] = np.linspace(1.0, 0.0, len(chosen))
 
 
-def episode_digest(env_id: str, seed: int, scripted: bool) -> str:
+def _expert(kind: str) -> Any:
+    """The Lift expert ``kind`` ("scripted" or "feedback") of whichever layout is installed."""
+    import importlib
+
+    names = {
+        "scripted": (
+            "ScriptedLiftPolicy",
+            ("dg16m_env.envs.lift.experts", "dg16m_env.envs.lift_expert"),
+        ),
+        "feedback": (
+            "FeedbackLiftExpert",
+            ("dg16m_env.envs.lift.experts", "dg16m_env.envs.lift_feedback_expert"),
+        ),
+    }
+    name, modules = names[kind]
+    for module in modules:
+        try:
+            return getattr(importlib.import_module(module), name)
+        except (ImportError, AttributeError):
+            continue
+    raise ImportError(f"expected {name} in one of {modules}, found none")
+
+
+def episode_digest(env_id: str, seed: int, policy_kind: str | None) -> str:
+    """sha256 of one seeded episode of ``env_id``: random actions (``policy_kind`` None) or the
+    Lift expert ``policy_kind`` ("scripted", "feedback") on the benchmark's grasp."""
     import gymnasium as gym
 
     import dg16m_env  # noqa: F401  (registers the environments)
 
-    kwargs = {"target_grasp": "benchmark"} if scripted else {}
+    kwargs = {"target_grasp": "benchmark"} if policy_kind else {}
     env = gym.make(env_id, **kwargs)
     policy = None
-    if scripted:
-        try:
-            from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
-        except ImportError:  # a tree from before the layered layout (0.2.0)
-            from dg16m_env.envs.dual_grasp_lift import ScriptedLiftPolicy
-        policy = ScriptedLiftPolicy()
+    if policy_kind == "scripted":
+        policy = _expert("scripted")()
+    elif policy_kind == "feedback":
+        policy = _expert("feedback")()
     env.action_space.seed(seed)
     obs, info = env.reset(seed=seed)
     h = hashlib.sha256(digest(obs).encode())
@@ -131,6 +166,40 @@ def episode_digest(env_id: str, seed: int, scripted: bool) -> str:
             break
     env.close()
     return h.hexdigest()
+
+
+def h5_digest(path: Path) -> str:
+    """sha256 of an HDF5 file's datasets and attributes (names in order), not its bytes."""
+    h = hashlib.sha256()
+
+    def visit(name: str, item: Any) -> None:
+        h.update(name.encode())
+        for key in sorted(item.attrs):
+            h.update(key.encode())
+            h.update(repr(item.attrs[key]).encode())
+        if isinstance(item, h5py.Dataset):
+            h.update(digest(item[()]).encode())
+
+    with h5py.File(path, "r") as f:
+        visit("/", f)
+        f.visititems(visit)
+    return h.hexdigest()
+
+
+def folder_digest(folder: Path) -> dict[str, str]:
+    """Relative path -> sha256 of every file under ``folder`` (HDF5 by content, JSON without
+    the keys of :data:`VOLATILE_KEYS`)."""
+    out = {}
+    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+        rel = str(path.relative_to(folder))
+        if path.suffix == ".h5":
+            out[rel] = h5_digest(path)
+        elif path.suffix == ".json":
+            text = json.dumps(scrub(json.loads(path.read_text())), sort_keys=True)
+            out[rel] = hashlib.sha256(text.encode()).hexdigest()
+        else:
+            out[rel] = hashlib.sha256(path.read_bytes()).hexdigest()
+    return out
 
 
 def main() -> None:
@@ -167,11 +236,34 @@ def main() -> None:
                 json.dumps(scrub(results), sort_keys=True).encode()
             ).hexdigest(),
             "episodes": {
-                "DualGraspPose-v0": episode_digest("dg16m_env/DualGraspPose-v0", 3, False),
-                "DualGraspSelect-v0": episode_digest("dg16m_env/DualGraspSelect-v0", 3, False),
-                "DualGraspLift-v0": episode_digest("dg16m_env/DualGraspLift-v0", 3, True),
+                "DualGraspPose-v0": episode_digest("dg16m_env/DualGraspPose-v0", 3, None),
+                "DualGraspSelect-v0": episode_digest("dg16m_env/DualGraspSelect-v0", 3, None),
+                "DualGraspLift-v0": episode_digest("dg16m_env/DualGraspLift-v0", 3, "scripted"),
+                "DualGraspLift-v1": episode_digest("dg16m_env/DualGraspLift-v1", 3, None),
+                "DualGraspLift-v1 feedback": episode_digest(
+                    "dg16m_env/DualGraspLift-v1", 4, "feedback"
+                ),
+                "DualGraspLift-v2": episode_digest("dg16m_env/DualGraspLift-v2", 3, None),
+                "DualGraspLift-v2 feedback": episode_digest(
+                    "dg16m_env/DualGraspLift-v2", 4, "feedback"
+                ),
             },
         }
+        objects = work / "objects"
+        dg16m("objects", "make", "--count", "3", "--out", str(objects))
+        out["objects make"] = folder_digest(objects)
+        generated = work / "generated"
+        dg16m(
+            "generate",
+            "--procedural",
+            "20",
+            "--workers",
+            "2",
+            "--out",
+            str(generated),
+            "--no-progress",
+        )
+        out["generate"] = folder_digest(generated)
     text = json.dumps(out, indent=2)
     print(text)
     if args.out:

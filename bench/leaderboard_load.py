@@ -43,14 +43,14 @@ from pathlib import Path
 import httpx
 import numpy as np
 
-from dataset_gen.atomic import write_json_atomic
+from dg16m_core.atomic import write_json_atomic
 from dg16m_env.benchmark.file import read_benchmark, write_benchmark
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.evaluators import load_benchmark_ref
 from dg16m_env.subjects.submission_writer import write_submission
 from leaderboard.board import Board
 
-CLI = [sys.executable, "-m", "dataset_gen.cli", "leaderboard"]
+CLI = [sys.executable, "-m", "dg16m_core.cli", "leaderboard"]
 LIMIT_S = 600.0
 """Longest wait for anything (the run fails rather than hang)."""
 

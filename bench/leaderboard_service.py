@@ -32,13 +32,13 @@ from pathlib import Path
 import httpx
 import numpy as np
 
-from dataset_gen.atomic import write_json_atomic
+from dg16m_core.atomic import write_json_atomic
 from dg16m_env.evaluators import load_benchmark_ref, make
 from dg16m_env.subjects.submission_reader import validate_submission
 from dg16m_env.subjects.submission_writer import write_submission
 from leaderboard.board import Board
 
-CLI = [sys.executable, "-m", "dataset_gen.cli", "leaderboard"]
+CLI = [sys.executable, "-m", "dg16m_core.cli", "leaderboard"]
 
 
 def _files(folder: Path, n: int, k: int) -> list[Path]:

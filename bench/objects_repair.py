@@ -3,7 +3,7 @@
 Two sets, one process, one core:
 
 1. the mesh files of ``../shared/data/real`` (the DG16M airplane in metres, two ACRONYM meshes in
-   their own units, the Franka hand), through :func:`dataset_gen.repair_meshes.repair_one`
+   their own units, the Franka hand), through :func:`dataset_gen.real.own_meshes.repair_one`
    with the units guess, exactly as the command runs them;
 2. ``--sweethome3d N`` models drawn (seeded) from Debian's ``sweethome3d-furniture`` libraries
    among those the importer keeps, written as the raw OBJ files of the library (their own
@@ -37,16 +37,16 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.errors import Dg16mError
-from dataset_gen.hashing import file_sha256
-from dataset_gen.repair import RepairParameters
-from dataset_gen.repair_meshes import (
+from dataset_gen.real.own_meshes import (
     INPUT_SUFFIXES,
     RepairItem,
     decide_units,
     read_source,
     repair_one,
 )
+from dataset_gen.real.repair import RepairParameters
+from dg16m_core.errors import Dg16mError
+from dg16m_core.hashing import file_sha256
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 
@@ -114,7 +114,7 @@ def shared_rows(out: Path, params: RepairParameters) -> list[dict[str, Any]]:
 def sweethome3d_rows(
     count: int, seed: int, out: Path, raw: Path, params: RepairParameters
 ) -> list[dict[str, Any]]:
-    from dataset_gen.sweethome3d import DEFAULT_ROOT, read_catalogs, usable_entries
+    from dataset_gen.real.sweethome3d import DEFAULT_ROOT, read_catalogs, usable_entries
 
     if count <= 0:
         return []
@@ -156,8 +156,8 @@ def _truth(scale: float) -> str:
 def units_guess_all(bands: list[tuple[float, float]]) -> dict[str, Any]:
     """The units guess on every raw file the importer keeps (read only, no repair): right,
     asked, wrong per true unit for the shipped rule, and in all for other ranges."""
-    from dataset_gen.objects import TYPICAL_EXTENT_M
-    from dataset_gen.sweethome3d import DEFAULT_ROOT, read_catalogs, read_model, usable_entries
+    from dataset_gen.objects.grasp_object import TYPICAL_EXTENT_M
+    from dataset_gen.real.sweethome3d import DEFAULT_ROOT, read_catalogs, read_model, usable_entries
 
     if not DEFAULT_ROOT.is_dir():
         print(f"{DEFAULT_ROOT}: absent (apt-get install sweethome3d-furniture), skipped")

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from dataset_gen.atomic import write_json_atomic
+from dg16m_core.atomic import write_json_atomic
 
 LIBRARY = Path("/usr/share/sweethome3d/furniture/KatorLegaz.sh3f")
 MODELS = (

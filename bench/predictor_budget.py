@@ -2,7 +2,7 @@
 
 ``dg16m evaluate --predictor`` gives each call of a predictor ``--time-limit`` seconds (default
 :data:`DEFAULT_TIME_LIMIT_S`); an object whose call runs over scores 0 (it never leaves the
-denominator). This script runs the paper's pairing baselines (``baselines.pairing``: random,
+denominator). This script runs the paper's pairing baselines (``baselines.pairing_baselines``: random,
 farthest and force-closure pairing) in this process on every object of a benchmark, one core,
 and prints each baseline's median, 99th percentile and largest seconds per object, the slowest
 objects, and the headroom: the limit divided by the largest time (the machine is shared: the
@@ -26,13 +26,13 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
-from baselines.pairing import farthest_baseline, force_closure_baseline, random_baseline
+from baselines.pairing_baselines import farthest_baseline, force_closure_baseline, random_baseline
 from dg16m_env.benchmark import load_benchmark_ref
 from dg16m_env.envs.objects import BenchmarkObjects
 from dg16m_env.subjects.observation import object_observation
 from dg16m_env.subjects.predictor_process import PredictorSpec
 
-DEFAULT_TIME_LIMIT_S = PredictorSpec("baselines.pairing:random_baseline").time_limit_s
+DEFAULT_TIME_LIMIT_S = PredictorSpec("baselines.pairing_baselines:random_baseline").time_limit_s
 BASELINES = {
     "random": random_baseline,
     "farthest": farthest_baseline,

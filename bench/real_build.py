@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.atomic import write_json_atomic
-from dataset_gen.sources import ObjectSource
-from dataset_gen.sweethome3d import import_summary
+from dataset_gen.real.sweethome3d import import_summary
+from dataset_gen.sources.object_source import ObjectSource
+from dg16m_core.atomic import write_json_atomic
 
 
 def _percentiles(values: list[float]) -> dict[str, float] | None:
@@ -108,7 +108,7 @@ def _read_once(path: str) -> Any:
 
 
 def _deviation_one(index: int, path: str) -> dict[str, Any]:
-    from dataset_gen.decomposition import decomposition_report
+    from dataset_gen.objects.decomposition import decomposition_report
 
     obj = _read_once(path).objects[index]
     mesh = obj.load().mesh
@@ -126,8 +126,8 @@ def shipped_numbers(benchmark: str, workers: int) -> dict[str, Any]:
     """The targets measured on a benchmark file alone: objects, fc_pass pairs per object
     (and those under the admission rule), invalid nominal trials and GSR per arm, and each
     object's hull-to-mesh deviation recomputed from the mesh and hulls the file carries (the
-    same :func:`~dataset_gen.decomposition.decomposition_report`, seed 0, the build used)."""
-    from dataset_gen.parallel import run_tasks
+    same :func:`~dataset_gen.objects.decomposition.decomposition_report`, seed 0, the build used)."""
+    from dataset_gen.pipeline.parallel import run_tasks
     from dg16m_env.benchmark.file import read_benchmark
     from dg16m_env.benchmark.model import SOURCES
     from dg16m_env.benchmark.names import benchmark_file
@@ -193,7 +193,7 @@ def screen_numbers(meshes: Path, workers: int) -> dict[str, Any]:
     """The build's screen (:func:`dg16m_env.benchmark.arms.screen_passing`) on every imported object:
     per category, how many reach the admission rule's passing pairs before the clearance rule
     (an upper bound on what the build admits)."""
-    from dataset_gen.parallel import run_tasks
+    from dataset_gen.pipeline.parallel import run_tasks
     from dg16m_env.benchmark.real import REAL_LIMITS, REAL_SIZE, import_entries, read_split
 
     entries = import_entries(meshes)

@@ -7,7 +7,7 @@ core, in the same run:
 
 1. **decomposition** (meshes): CoACD with the default :class:`DecompositionParameters` into a fresh
    cache (time measured), again from the cache (time measured), and the hull-to-mesh deviation
-   (:func:`dataset_gen.decomposition.decomposition_report`);
+   (:func:`dataset_gen.objects.decomposition.decomposition_report`);
 2. **pairs** exactly as ``dg16m benchmark build --robust N`` draws them (:func:`sampled_pairs`:
    the open-hand clearance rule against the same parts, the paper's four arms and ``fc_robust``);
 3. **labels**: :func:`dg16m_env.physics.labels.success_probability` (nominal + K perturbed trials);
@@ -40,10 +40,10 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from dataset_gen.atomic import write_json_atomic
-from dataset_gen.decomposition import decomposition_report, object_parts
-from dataset_gen.json_values import json_ready
-from dataset_gen.sources import ObjectSource, mesh_sources, object_seed
+from dataset_gen.objects.decomposition import decomposition_report, object_parts
+from dataset_gen.sources.object_source import ObjectSource, mesh_sources, object_seed
+from dg16m_core.atomic import write_json_atomic
+from dg16m_core.json_values import json_ready
 from dg16m_env.benchmark.arms import sampled_pairs
 from dg16m_env.benchmark.model import SOURCES, BenchmarkParameters
 from dg16m_env.benchmark.sources import procedural_benchmark_sources

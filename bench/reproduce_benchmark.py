@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dataset_gen.atomic import write_json_atomic
-from dataset_gen.json_values import json_ready
+from dg16m_core.atomic import write_json_atomic
+from dg16m_core.json_values import json_ready
 from dg16m_env.benchmark.build import benchmark_object
 from dg16m_env.benchmark.file import read_benchmark
 from dg16m_env.benchmark.model import SOURCES, Benchmark, BenchmarkParameters

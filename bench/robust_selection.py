@@ -1,4 +1,4 @@
-"""Does the disturbance motion ratio (dataset_gen.robust) predict simulated success? No new trials.
+"""Does the disturbance motion ratio (dataset_gen.grasps.robust) predict simulated success? No new trials.
 
 Reads a benchmark file (default: the shipped procedural one), computes every row's disturbance
 motion ratio from its stored contacts and its object's mass properties, and sets it beside the
@@ -26,10 +26,10 @@ from typing import Any
 import numpy as np
 
 from baselines.da2_labels import roc_auc
-from dataset_gen.atomic import write_json_atomic
 from dataset_gen.force_closure import evaluate
-from dataset_gen.json_values import json_ready
-from dataset_gen.robust import disturbance_motion
+from dataset_gen.grasps.robust import disturbance_motion
+from dg16m_core.atomic import write_json_atomic
+from dg16m_core.json_values import json_ready
 from dg16m_env.benchmark.file import read_benchmark
 from dg16m_env.benchmark.model import SOURCES
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK

@@ -60,10 +60,10 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from dataset_gen.decomposition import object_parts
-from dataset_gen.objects import GraspObject
-from dataset_gen.procedural import benchmark_specs
-from dataset_gen.sources import ObjectSource, object_seed, procedural_sources
+from dataset_gen.objects.decomposition import object_parts
+from dataset_gen.objects.grasp_object import GraspObject
+from dataset_gen.sources.object_source import ObjectSource, object_seed, procedural_sources
+from dataset_gen.sources.procedural import benchmark_specs
 from dg16m_env.benchmark.arms import sampled_pairs
 from dg16m_env.benchmark.model import BenchmarkParameters
 from dg16m_env.physics import labels, trial
@@ -728,7 +728,7 @@ def report(rows: list[dict[str, Any]], args: Arguments, mesh_note: str | None) -
         f"(+{load_compile:.2f} s per object): {with_load:.0f} s ({with_load / 60:.1f} min)"
     )
     if args.json:
-        from dataset_gen.atomic import write_json_atomic
+        from dg16m_core.atomic import write_json_atomic
 
         def clean(value: Any) -> Any:
             if isinstance(value, dict):

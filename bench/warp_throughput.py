@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 from label_stability import machine
 
-from dataset_gen.atomic import write_json_atomic
+from dg16m_core.atomic import write_json_atomic
 from dg16m_env.benchmark.file import read_benchmark
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.physics.labels import trial_poses

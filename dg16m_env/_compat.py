@@ -9,27 +9,24 @@ Two kinds of redirect:
   patching or reloading it through either name acts on the one module; a module that was cut in
   pieces (``dg16m_env.submission``) is a small module that looks each name up in its pieces, in
   order.
-* :data:`MOVED_NAMES`: a name that left a module that still exists
-  (``dg16m_env.envs.dual_grasp_lift.ScriptedLiftPolicy``) is found by that module's
-  ``__getattr__`` (:func:`moved_names`).
+* :data:`MOVED_NAMES`: a name that left a module that still exists is found by that
+  module's ``__getattr__`` (:func:`moved_names`). (``dg16m_env.envs.dual_grasp_lift``'s, 0.2.0,
+  are now found in its pieces: the module moved into :mod:`dg16m_env.envs.lift`.)
 
-Redirects are resolved by name with :func:`importlib.import_module` when they are used: this
-table is not a dependency of the layers, and nothing in the package imports through it.
+The mechanism is the kernel's (:mod:`dg16m_core.compat`, standard library only); this module is
+the table. Redirects are resolved by name when they are used: this table is not a dependency of
+the layers, and nothing in the package imports through it.
 """
 
 from __future__ import annotations
 
-import importlib
-import importlib.abc
-import importlib.machinery
-import sys
-import types
-import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any
 
-REMOVED_IN = "0.3.0"
-"""The release that drops the old paths."""
+from dg16m_core import compat
+from dg16m_core.compat import REMOVED_IN
+
+__all__ = ["MOVED_MODULES", "MOVED_NAMES", "REMOVED_IN", "install", "moved_names"]
 
 _P = "dg16m_env"
 
@@ -44,7 +41,8 @@ MOVED_MODULES: dict[str, tuple[str, ...]] = {
     f"{_P}.labels": (f"{_P}.physics.labels",),
     f"{_P}.replay": (f"{_P}.physics.replay",),
     f"{_P}.reseat": (f"{_P}.physics.reseat",),
-    f"{_P}.gsr": (f"{_P}.physics.gsr_core",),
+    f"{_P}.gsr": (f"{_P}.physics.success_probabilities",),
+    f"{_P}.physics.gsr_core": (f"{_P}.physics.success_probabilities",),
     f"{_P}.envs.cameras": (f"{_P}.physics.cameras",),
     f"{_P}.envs.lift_scene": (f"{_P}.physics.lift_scene",),
     # benchmark: the model, the file, sources, building, short names, reports, real objects
@@ -68,107 +66,48 @@ MOVED_MODULES: dict[str, tuple[str, ...]] = {
     f"{_P}.benchmark_command": (f"{_P}.cli.benchmark",),
     f"{_P}.evaluate_command": (f"{_P}.cli.evaluate",),
     f"{_P}.sim_command": (f"{_P}.cli.sim",),
+    # envs: Lift's vector env, in the Lift package
+    f"{_P}.envs.lift_vector": (f"{_P}.envs.lift.vector",),
+    # envs: the Lift task, one package (one task class, versions as records)
+    f"{_P}.envs.dual_grasp_lift": (
+        f"{_P}.envs.lift.v0",
+        f"{_P}.envs.lift.task",
+        f"{_P}.envs.lift.scenes",
+        f"{_P}.envs.lift.measures",
+        f"{_P}.envs.lift.spaces",
+        f"{_P}.envs.lift.experts",
+        f"{_P}.envs.lift.reward",
+    ),
+    f"{_P}.envs.dual_grasp_lift_v1": (
+        f"{_P}.envs.lift.v1",
+        f"{_P}.envs.lift.task",
+        f"{_P}.envs.lift.state",
+        f"{_P}.envs.lift.observations",
+        f"{_P}.envs.lift.reward",
+    ),
+    f"{_P}.envs.dual_grasp_lift_v2": (f"{_P}.envs.lift.v2", f"{_P}.envs.lift.arithmetic"),
+    f"{_P}.envs.lift_demos": (f"{_P}.envs.lift.demos", f"{_P}.envs.lift.demo_files"),
+    f"{_P}.envs.lift_expert": (f"{_P}.envs.lift.experts",),
+    f"{_P}.envs.lift_feedback_expert": (f"{_P}.envs.lift.experts",),
+    f"{_P}.envs.lift_kernels": (f"{_P}.envs.lift.kernels",),
+    f"{_P}.envs.lift_measures": (f"{_P}.envs.lift.measures",),
+    f"{_P}.envs.lift_observations": (f"{_P}.envs.lift.observations",),
+    f"{_P}.envs.lift_reward": (f"{_P}.envs.lift.reward",),
+    f"{_P}.envs.lift_spaces": (f"{_P}.envs.lift.spaces",),
+    f"{_P}.envs.lift_targets": (f"{_P}.envs.lift.targets",),
 }
 """Old module name -> its new module(s); a name is looked up in them in order."""
 
-MOVED_NAMES: dict[str, dict[str, str]] = {
-    f"{_P}.envs.dual_grasp_lift": {
-        "ScriptedLiftPolicy": f"{_P}.envs.lift_expert",
-        "PREGRASP_DISTANCE": f"{_P}.envs.lift_expert",
-        "REWARD_WEIGHTS": f"{_P}.envs.lift_reward",
-    },
-}
+MOVED_NAMES: dict[str, dict[str, str]] = {}
 """Module that still exists -> {name that left it: the module it went to}."""
-
-
-def _warn(old: str, new: str, stacklevel: int) -> None:
-    warnings.warn(
-        f"{old} moved to {new}; the old path works until dg16m {REMOVED_IN}, then it is removed",
-        DeprecationWarning,
-        stacklevel=stacklevel,
-    )
 
 
 def moved_names(module: str) -> Callable[[str], Any]:
     """A module-level ``__getattr__`` for ``module`` that finds the names of
     :data:`MOVED_NAMES` ``[module]`` in their new modules, with a :class:`DeprecationWarning`."""
-    moved = MOVED_NAMES[module]
-
-    def __getattr__(name: str) -> Any:  # noqa: N807  (a module's __getattr__, PEP 562)
-        target = moved.get(name)
-        if target is None:
-            raise AttributeError(f"module {module!r} has no attribute {name!r}")
-        _warn(f"{module}.{name}", f"{target}.{name}", stacklevel=3)
-        return getattr(importlib.import_module(target), name)
-
-    return __getattr__
-
-
-class _PiecesModule(types.ModuleType):
-    """An old module that was cut in pieces: each attribute comes from the first piece that has
-    it."""
-
-    _pieces: Sequence[str]
-
-    def __getattr__(self, name: str) -> Any:
-        if name.startswith("__"):
-            raise AttributeError(name)
-        for piece in self._pieces:
-            module = importlib.import_module(piece)
-            if hasattr(module, name):
-                return getattr(module, name)
-        raise AttributeError(
-            f"module {self.__name__!r} has no attribute {name!r} (it moved to "
-            f"{', '.join(self._pieces)}, which do not have it either)"
-        )
-
-    def __dir__(self) -> list[str]:
-        names: set[str] = set()
-        for piece in self._pieces:
-            names.update(dir(importlib.import_module(piece)))
-        return sorted(names)
-
-
-class _MovedModuleLoader(importlib.abc.Loader):
-    def __init__(self, old: str, new: tuple[str, ...]) -> None:
-        self.old, self.new = old, new
-        self._own_spec: importlib.machinery.ModuleSpec | None = None
-
-    def create_module(self, spec: importlib.machinery.ModuleSpec) -> types.ModuleType:
-        # warnings skips importlib's own frames: stacklevel 3 is the line that imports the old name
-        _warn(self.old, " and ".join(self.new), stacklevel=3)
-        if len(self.new) == 1:
-            moved = importlib.import_module(self.new[0])
-            self._own_spec = moved.__spec__
-            return moved
-        module = _PiecesModule(self.old, f"The old home of {', '.join(self.new)} (deprecated).")
-        module._pieces = self.new
-        all_names: list[str] = []
-        for piece in self.new:
-            all_names += list(getattr(importlib.import_module(piece), "__all__", ()))
-        if all_names:
-            module.__all__ = all_names
-        return module
-
-    def exec_module(self, module: types.ModuleType) -> None:
-        # importlib set the old name's spec on the module; a moved module keeps its own.
-        if len(self.new) == 1:
-            module.__spec__ = self._own_spec
-
-
-class _MovedModuleFinder(importlib.abc.MetaPathFinder):
-    """Finds the old names of :data:`MOVED_MODULES` (no file has them any more)."""
-
-    def find_spec(
-        self, fullname: str, path: Any = None, target: types.ModuleType | None = None
-    ) -> importlib.machinery.ModuleSpec | None:
-        new = MOVED_MODULES.get(fullname)
-        if new is None:
-            return None
-        return importlib.machinery.ModuleSpec(fullname, _MovedModuleLoader(fullname, new))
+    return compat.moved_names(module, MOVED_NAMES[module])
 
 
 def install() -> None:
     """Put the finder of the old module names on ``sys.meta_path`` (once)."""
-    if not any(isinstance(finder, _MovedModuleFinder) for finder in sys.meta_path):
-        sys.meta_path.append(_MovedModuleFinder())
+    compat.install(MOVED_MODULES)

@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.checks import check_integer
-from dataset_gen.errors import Dg16mError
+from dg16m_core.checks import check_integer
+from dg16m_core.errors import Dg16mError
 
 
 class RateError(Dg16mError, ValueError):

@@ -12,7 +12,7 @@ together the parts, each in its own module:
 * :mod:`leaderboard.queue`: the scoring jobs, their claims and leases, and every state change
   as an event;
 * :mod:`leaderboard.results`: reading submissions, counts and ranked results for the views;
-* :mod:`leaderboard.checks`: the errors, and the checks of names, labels and ids.
+* :mod:`leaderboard.query_checks`: the errors, and the checks of names, labels, ids and queries.
 
 Any number of processes may open the same board. Submission files are validated
 (:func:`dg16m_env.subjects.submission_reader.read_submission`, against the board's benchmark) before anything
@@ -34,7 +34,8 @@ from typing import Any
 from dg16m_env.subjects.submission import SubmissionInvalid, SubmissionLimits
 from dg16m_env.subjects.submission_reader import read_submission
 
-from .checks import (
+from .files import FileStore
+from .query_checks import (
     FILE_NAME,
     LABEL_CHARS,
     MAX_ID,
@@ -49,7 +50,6 @@ from .checks import (
     check_label,
     check_team_name,
 )
-from .files import FileStore
 from .queue import Claim, NewSubmission, Queue
 from .results import Results
 from .store import BUSY_TIMEOUT_MS, Store

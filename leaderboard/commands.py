@@ -16,7 +16,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from dataset_gen.cli import add_command
+from dg16m_core import arguments
+from dg16m_core.cli import add_command
 from dg16m_env.cli.evaluate import add_benchmark_arguments
 
 DEFAULT_DB = Path("runs") / "leaderboard" / "board.db"
@@ -38,9 +39,7 @@ def _db(parser: argparse.ArgumentParser) -> None:
 
 
 def _scoring(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--workers", type=int, default=1, help="local processes per scoring run")
-    parser.add_argument("--backend", choices=("local", "ray"), default="local")
-    parser.add_argument("--address", default=None, help="Ray address: auto or host:port")
+    arguments.add_parallel_arguments(parser, "local processes per scoring run")
     parser.add_argument(
         "--lease", type=float, default=60.0, metavar="S", help="a claim's lease (default 60 s)"
     )
@@ -62,7 +61,21 @@ def register(subparsers: Any) -> None:
         ),
     )
     actions = board.add_subparsers(dest="leaderboard_command", metavar="ACTION", required=True)
+    for add in (
+        _add_init,
+        _add_team,
+        _add_submit,
+        _add_show,
+        _add_status,
+        _add_render,
+        _add_serve,
+        _add_worker,
+    ):
+        add(actions)
 
+
+def _add_init(actions: Any) -> None:
+    """``dg16m leaderboard init``."""
     init = add_command(
         actions,
         "init",
@@ -76,6 +89,9 @@ def register(subparsers: Any) -> None:
     init.add_argument("--title", default="dg16m leaderboard", help="the page's title")
     init.set_defaults(handler=_init)
 
+
+def _add_team(actions: Any) -> None:
+    """``dg16m leaderboard team {add,list,token}``."""
     team = add_command(
         actions,
         "team",
@@ -110,6 +126,9 @@ def register(subparsers: Any) -> None:
         _db(sub)
         sub.set_defaults(handler=_team, team_action=name)
 
+
+def _add_submit(actions: Any) -> None:
+    """``dg16m leaderboard submit``."""
     submit = add_command(
         actions,
         "submit",
@@ -140,11 +159,12 @@ def register(subparsers: Any) -> None:
     remote.add_argument(
         "--wait", type=float, default=0.0, metavar="S", help="wait up to S s for the score"
     )
-    submit.add_argument(
-        "--no-progress", action="store_true", help="no progress bars while scoring locally"
-    )
+    arguments.add_progress_argument(submit, "no progress bars while scoring locally")
     submit.set_defaults(handler=_submit)
 
+
+def _add_show(actions: Any) -> None:
+    """``dg16m leaderboard show``."""
     show = add_command(
         actions,
         "show",
@@ -154,10 +174,13 @@ def register(subparsers: Any) -> None:
     )
     _db(show)
     show.add_argument("--evaluator", default=None, help="only this evaluator")
-    show.add_argument("--limit", type=int, default=20, help="rows per evaluator (default 20)")
+    arguments.add_limit_argument(show, "rows per evaluator (default 20)", 20)
     show.add_argument("--json", action="store_true", help="print the board view as JSON")
     show.set_defaults(handler=_show)
 
+
+def _add_status(actions: Any) -> None:
+    """``dg16m leaderboard status``."""
     status = add_command(
         actions,
         "status",
@@ -169,6 +192,9 @@ def register(subparsers: Any) -> None:
     _db(status)
     status.set_defaults(handler=_status)
 
+
+def _add_render(actions: Any) -> None:
+    """``dg16m leaderboard render``."""
     render = add_command(
         actions,
         "render",
@@ -176,9 +202,12 @@ def register(subparsers: Any) -> None:
         "  dg16m leaderboard render --db runs/board.db --out runs/board-html\n",
     )
     _db(render)
-    render.add_argument("--out", type=Path, required=True, help="the folder to write")
+    arguments.add_out_argument(render, "the folder to write")
     render.set_defaults(handler=_render)
 
+
+def _add_serve(actions: Any) -> None:
+    """``dg16m leaderboard serve``."""
     serve = add_command(
         actions,
         "serve",
@@ -227,6 +256,9 @@ def register(subparsers: Any) -> None:
     serve.add_argument("--log-level", default="warning", help="uvicorn's log level")
     serve.set_defaults(handler=_serve)
 
+
+def _add_worker(actions: Any) -> None:
+    """``dg16m leaderboard worker``."""
     worker = add_command(
         actions,
         "worker",
@@ -360,9 +392,7 @@ def _submit(args: argparse.Namespace) -> int:
         return 0
     options = WorkerOptions(
         lease_s=args.lease,
-        workers=args.workers,
-        backend=args.backend,
-        address=args.address,
+        **arguments.parallel_options(args),
         progress=not args.no_progress,
     )
     claim = board.claim(worker_name(), options.lease_s, submission_id=sid)
@@ -527,9 +557,7 @@ def _worker(args: argparse.Namespace) -> int:
     options = WorkerOptions(
         lease_s=args.lease,
         poll_s=args.poll,
-        workers=args.workers,
-        backend=args.backend,
-        address=args.address,
+        **arguments.parallel_options(args),
         max_jobs=args.max_jobs,
         idle_exit_s=args.idle_exit,
     )

@@ -26,7 +26,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import BinaryIO
 
-from .checks import BoardError
+from .query_checks import BoardError
 
 _SHA = re.compile(r"^[0-9a-f]{64}$")
 UPLOAD_PREFIX = "upload-"

@@ -35,7 +35,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from dataset_gen.atomic import write_text_atomic
+from dg16m_core.atomic import write_text_atomic
 
 from .page_chart import CHART_TOP, _family_chart
 from .page_chart import PALETTE as PALETTE

@@ -24,7 +24,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from .checks import BoardError, DuplicateError, check_id
+from .query_checks import BoardError, DuplicateError, check_id
 from .store import Store
 
 

@@ -1,7 +1,7 @@
 """Reading a board for its views: submissions' rows, counts, results, and the scored rows
 ranked per evaluator (a page at a time).
 
-Every id that comes in is checked (:func:`~leaderboard.checks.check_id`) before it reaches
+Every id that comes in is checked (:func:`~leaderboard.query_checks.check_id`) before it reaches
 SQLite, so an id past SQLite's 64-bit integers is "not found", never an overflow.
 """
 
@@ -11,7 +11,7 @@ import json
 import sqlite3
 from typing import Any
 
-from .checks import ForbiddenError, NotFoundError, check_id
+from .query_checks import ForbiddenError, NotFoundError, check_id
 from .store import Store
 from .teams import Team
 

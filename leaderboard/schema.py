@@ -25,7 +25,7 @@ from __future__ import annotations
 import sqlite3
 from dataclasses import dataclass
 
-from dataset_gen.errors import Dg16mError
+from dg16m_core.errors import Dg16mError
 
 
 class SchemaError(Dg16mError, RuntimeError):

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from .checks import BoardError, NotFoundError, check_team_name
+from .query_checks import BoardError, NotFoundError, check_team_name
 from .store import Store
 from .tokens import find_token, new_token, token_sha256
 

@@ -27,7 +27,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from .board import Board, NotFoundError, Team
-from .checks import InvalidParameterError
+from .query_checks import InvalidParameterError
 from .worker import iso_time
 
 VIEW_FORMAT = "dg16m-leaderboard"

@@ -38,8 +38,8 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from typing import Any, Literal
 
-from dataset_gen.errors import Dg16mError
-from dataset_gen.parallel import Backend
+from dataset_gen.pipeline.parallel import Backend
+from dg16m_core.errors import Dg16mError
 
 from .board import Board, BoardError, Claim
 
@@ -273,12 +273,17 @@ class Scorer:
             else:
                 return results, None
 
-    def kill(self) -> int | None:
-        """Kill the process with its group (the evaluators' pool); its exit status."""
+    def _release(self) -> multiprocessing.process.BaseProcess | None:
+        """Forget the process and close its pipe; the process (None when none was running)."""
         proc, self._proc = self._proc, None
         if self._conn is not None:
             self._conn.close()
             self._conn = None
+        return proc
+
+    def kill(self) -> int | None:
+        """Kill the process with its group (the evaluators' pool); its exit status."""
+        proc = self._release()
         if proc is None:
             return None
         try:
@@ -291,10 +296,7 @@ class Scorer:
     def close(self) -> int | None:
         """Let the process end (it sees the end of its jobs), or kill it after 30 s; its exit
         status (0: it ended by itself), None when none was running."""
-        proc, self._proc = self._proc, None
-        if self._conn is not None:
-            self._conn.close()
-            self._conn = None
+        proc = self._release()
         if proc is None:
             return None
         proc.join(30)
@@ -320,7 +322,7 @@ def score_claim(
 ) -> Outcome:
     """Score a claimed submission (in a :class:`Scorer` process) and store the outcome.
 
-    Input problems (a :class:`~dataset_gen.errors.Dg16mError`, e.g. a file that no longer
+    Input problems (a :class:`~dg16m_core.errors.Dg16mError`, e.g. a file that no longer
     validates) fail the submission with their message; any other exception is a bug or a
     broken environment: it fails the submission with its traceback in the log, and is printed
     on stderr for the board's operator. A lost lease stops the scoring at once.

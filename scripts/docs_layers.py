@@ -1,15 +1,17 @@
-"""Draw ``dg16m_env``'s layers and the imports between them into
-``docs/_static/pictures/layers.png`` (the user guide's *Layout* section shows it).
+"""Draw ``dg16m_env``'s layers and ``dataset_gen``'s floors (on the kernel ``dg16m_core``) with
+the imports between them into ``docs/_static/pictures/layers.png`` and
+``docs/_static/pictures/dataset_gen_layers.png`` (the user guide's *Layout* section shows them).
 
-The picture is made from the code, not by hand: the layers are
-``tests/test_import_circles.py``'s :data:`LAYERS` and the imports are that test's graph (read with
-:mod:`ast`, function-level imports included). Each layer is a box with its modules; an arrow
-Each box lists the layers it imports from, with how many module-to-module imports each stands
-for; a layer that imported from above would be drawn red (the test fails on it).
+The pictures are made from the code, not by hand: the layers are
+``tests/test_import_circles.py``'s :data:`LAYERS` and :data:`DATASET_GEN_LAYERS` and the imports
+are that test's graph (read with :mod:`ast`, function-level imports included). Each layer is a box
+with its modules; each box lists the layers it imports from, with how many module-to-module
+imports each stands for; a layer that imported from above would be drawn red (the test fails on
+it).
 
 Usage::
 
-    .venv/bin/python scripts/docs_layers.py [--out PATH]
+    .venv/bin/python scripts/docs_layers.py [--out FOLDER]
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import FancyArrowPatch, FancyBboxPatch
 
 ROOT = Path(__file__).resolve().parents[1]
-OUT = ROOT / "docs" / "_static" / "pictures" / "layers.png"
+OUT = ROOT / "docs" / "_static" / "pictures"
 
 
 def load_layer_test() -> ModuleType:
@@ -39,28 +41,37 @@ def load_layer_test() -> ModuleType:
     return module
 
 
-def layer_contents(checker: ModuleType) -> tuple[list[list[str]], Counter[tuple[int, int]]]:
-    """Per layer (bottom first) its module names without the package prefix; and the number of
+Layers = tuple[tuple[str, ...], ...]
+
+
+def layer_contents(
+    checker: ModuleType, layers: Layers
+) -> tuple[list[list[str]], Counter[tuple[int, int]]]:
+    """Per layer (bottom first) its module names without the layer's prefix; and the number of
     module imports from layer a to layer b, keyed (a, b) with a != b."""
     graph = checker.import_graph()
-    modules: list[list[str]] = [[] for _ in checker.LAYERS]
+    modules: list[list[str]] = [[] for _ in layers]
     edges: Counter[tuple[int, int]] = Counter()
     for module, deps in graph.items():
-        here = checker.layer_of(module)
+        here = checker.layer_of(module, layers)
         if here is None:
             continue
-        prefix = checker.LAYERS[here][0]
+        prefix = next(p for p in layers[here] if module == p or module.startswith(p + "."))
         short = module[len(prefix) + 1 :] if module != prefix else "__init__"
+        if len(layers[here]) > 1 and short != "__init__":
+            short = f"{prefix.rsplit('.', 1)[-1]}.{short}"
         modules[here].append(short or "__init__")
         for dep in deps:
-            there = checker.layer_of(dep)
+            there = checker.layer_of(dep, layers)
             if there is not None and there != here:
                 edges[here, there] += 1
     return [sorted(m) for m in modules], edges
 
 
-def draw(checker: ModuleType) -> Figure:
-    modules, edges = layer_contents(checker)
+def draw(checker: ModuleType, layers: Layers, package: str) -> Figure:
+    """The picture of ``layers`` (bottom first); ``package``'s prefix is left out of the short
+    names in the "imports from" lists."""
+    modules, edges = layer_contents(checker, layers)
     n = len(modules)
     fig = Figure(figsize=(9.0, 0.9 * n + 0.3), dpi=110)
     ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
@@ -68,7 +79,7 @@ def draw(checker: ModuleType) -> Figure:
     ax.set_ylim(-0.1, n * 1.0)
     ax.axis("off")
     box_x, box_w, height = 0.3, 9.4, 0.78
-    short = [checker.LAYERS[i][0].removeprefix("dg16m_env.") for i in range(n)]
+    short = [" + ".join(p.removeprefix(package + ".") for p in layers[i]) for i in range(n)]
     for index, names in enumerate(modules):
         y = index * 1.0
         upward = [b for (a, b) in edges if a == index and b > index]
@@ -85,7 +96,7 @@ def draw(checker: ModuleType) -> Figure:
         ax.text(
             box_x + 0.12,
             y + height - 0.17,
-            checker.LAYERS[index][0],
+            " + ".join(layers[index]),
             fontsize=10,
             weight="bold",
             va="center",
@@ -106,12 +117,12 @@ def draw(checker: ModuleType) -> Figure:
         lines = textwrap.wrap(listed, 150)
         ax.text(
             box_x + 0.12,
-            y + 0.25,
-            "\n".join(lines[:2]),
-            fontsize=6.8,
+            y + (0.25 if len(lines) < 3 else 0.29),
+            "\n".join(lines[:3]),
+            fontsize=6.8 if len(lines) < 3 else 6.3,
             va="center",
             color="#333333",
-            linespacing=1.4,
+            linespacing=1.4 if len(lines) < 3 else 1.25,
         )
         if index > 0:
             ax.add_patch(
@@ -128,14 +139,21 @@ def draw(checker: ModuleType) -> Figure:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--out", type=Path, default=OUT, help="folder of the pictures")
     args = parser.parse_args()
-    fig = draw(load_layer_test())
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = args.out.with_suffix(".tmp.png")
-    fig.savefig(tmp)
-    tmp.replace(args.out)
-    print(f"wrote {args.out} ({args.out.stat().st_size // 1024} KiB)")
+    checker = load_layer_test()
+    pictures = {
+        "layers.png": (checker.LAYERS, "dg16m_env"),
+        "dataset_gen_layers.png": ((("dg16m_core",), *checker.DATASET_GEN_LAYERS), "dataset_gen"),
+    }
+    args.out.mkdir(parents=True, exist_ok=True)
+    for name, (layers, package) in pictures.items():
+        fig = draw(checker, layers, package)
+        path = args.out / name
+        tmp = path.with_suffix(".tmp.png")
+        fig.savefig(tmp)
+        tmp.replace(path)
+        print(f"wrote {path} ({path.stat().st_size // 1024} KiB)")
 
 
 if __name__ == "__main__":

@@ -87,7 +87,7 @@ def render_lift(out: Path) -> None:
     from PIL import Image
 
     import dg16m_env  # noqa: F401  (registers the environments)
-    from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
+    from dg16m_env.envs.lift.experts import ScriptedLiftPolicy
 
     width, height = LIFT_SIZE
     env = gym.make(

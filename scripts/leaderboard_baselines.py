@@ -24,8 +24,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from baselines.commands import DEFAULT_STRATEGIES
 from baselines.reference_submissions import parse_strategies, write_reference_submissions
+from baselines.submission_arguments import DEFAULT_STRATEGIES
 from dg16m_env.subjects.predictor import submission_from_predictor
 from dg16m_env.subjects.predictor_process import PredictorSpec
 from leaderboard.board import (

@@ -17,7 +17,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from dataset_gen.errors import Dg16mError
+from dg16m_core.errors import Dg16mError
 from dg16m_env.benchmark.real import read_split
 from dg16m_env.benchmark.real_build_state import restore_build_state, save_build_state
 

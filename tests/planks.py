@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from dataset_gen.gripper import PANDA
-from dataset_gen.objects import ConvexPart, GraspObject, make_object
+from dataset_gen.grasps.gripper import PANDA
+from dataset_gen.objects.grasp_object import ConvexPart, GraspObject, make_object
 
 THICKNESS = 0.04  # m, the planks' square cross-section
 DOWN, SIDE = (0.0, 0.0, -1.0), (0.0, 1.0, 0.0)  # approach directions (object frame)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from dataset_gen.decomposition import DecompositionParameters
+from dataset_gen.objects.decomposition import DecompositionParameters
 
 MESHES = Path(__file__).parent / "data" / "meshes"
 """The shipped real meshes (couch, dining chair, dining table; metres; see NOTICE.md there)."""

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from dataset_gen.atomic import atomic_path, write_bytes_atomic
+from dg16m_core.atomic import atomic_path, write_bytes_atomic
 
 
 def test_new_files_get_umask_permissions_not_mkstemp_0600(tmp_path: Path) -> None:

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from baselines.commands import register, run_submissions
-from baselines.pairing import (
+from baselines.baseline_commands import register, run_submissions
+from baselines.pairing_baselines import (
     PAIRING_STRATEGIES,
     BaselineError,
     PairingBaseline,
@@ -31,8 +31,8 @@ from baselines.reference_submissions import (
     write_reference_submissions,
 )
 from dataset_gen.force_closure import evaluate
-from dataset_gen.objects import is_rigid
-from dataset_gen.pairing import candidate_pairs, dual_contacts, score_pairs
+from dataset_gen.grasps.pairing import candidate_pairs, dual_contacts, score_pairs
+from dataset_gen.objects.grasp_object import is_rigid
 from dg16m_env.benchmark.file import write_benchmark
 from dg16m_env.benchmark.model import SOURCES
 from dg16m_env.benchmark.ref import BenchmarkRef

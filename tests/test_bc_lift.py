@@ -15,7 +15,7 @@ pytest.importorskip("torch")
 pytest.importorskip("minari")
 
 from baselines.lift_bc_policy import LiftBCPolicy
-from dg16m_env.envs.lift_demos import collect_lift_demos
+from dg16m_env.envs.lift.demos import collect_lift_demos
 
 
 @pytest.fixture(scope="module")

@@ -11,10 +11,10 @@ import pytest
 
 pytest.importorskip("mujoco")
 
-from dataset_gen.cli import main as cli_main
-from dataset_gen.generate import GenerationParameters, generate_dataset
 from dataset_gen.io import read_manifest
-from dataset_gen.sources import procedural_sources
+from dataset_gen.pipeline.generate import GenerationParameters, generate_dataset
+from dataset_gen.sources.object_source import procedural_sources
+from dg16m_core.cli import main as cli_main
 from dg16m_env.benchmark.build import benchmark_object, build_benchmark
 from dg16m_env.benchmark.file import read_benchmark, write_benchmark
 from dg16m_env.benchmark.model import (
@@ -208,7 +208,7 @@ def test_retarget_moves_contacts_to_the_panda_depth() -> None:
     pose = np.eye(4)
     moved = retarget_poses(pose[None], "robotiq_2f85")[0]
     # A contact at the 2F-85's depth along +y lands at the Panda's depth after the move.
-    from dataset_gen.gripper import PANDA, ROBOTIQ_2F85
+    from dataset_gen.grasps.gripper import PANDA, ROBOTIQ_2F85
 
     contact = pose[:3, 3] + ROBOTIQ_2F85.contact_depth * pose[:3, 1]
     np.testing.assert_allclose(moved[:3, 3] + PANDA.contact_depth * moved[:3, 1], contact)
@@ -391,9 +391,9 @@ def test_shipped_benchmark_is_reproduced_by_a_rebuild() -> None:
 
 
 def test_defaults_are_the_papers() -> None:
-    from dataset_gen.parameters import PAPER
-    from dg16m_env.physics.gsr_core import GraspJob
+    from dg16m_core.parameters import PAPER
     from dg16m_env.physics.scene import SceneParameters
+    from dg16m_env.physics.success_probabilities import GraspJob
     from dg16m_env.physics.trial_protocol import TrialProtocol
 
     params = BenchmarkParameters()

@@ -18,10 +18,10 @@ pytest.importorskip("mujoco")
 from planks import DOWN, THICKNESS, dual, hand, plank
 from shipped_meshes import MESHES
 
-from dataset_gen.cli import main as cli_main
-from dataset_gen.decomposition import DecompositionParameters
-from dataset_gen.gripper import PANDA
+from dataset_gen.grasps.gripper import PANDA
 from dataset_gen.io import DualGraspSet, read_manifest, write_dg16m
+from dataset_gen.objects.decomposition import DecompositionParameters
+from dg16m_core.cli import main as cli_main
 from dg16m_env.benchmark.build import benchmark_object, build_benchmark
 from dg16m_env.benchmark.file import read_benchmark, write_benchmark
 from dg16m_env.benchmark.model import (

@@ -9,7 +9,7 @@ import gymnasium as gym
 import pytest
 
 import dg16m_env  # noqa: F401  registers the environments
-from dataset_gen.cli import main as cli_main
+from dg16m_core.cli import main as cli_main
 from dg16m_env.benchmark.model import BenchmarkError
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK, benchmark_file
 

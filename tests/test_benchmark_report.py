@@ -13,8 +13,8 @@ import pytest
 
 pytest.importorskip("mujoco")
 
-from dataset_gen.cli import main as cli_main
-from dataset_gen.json_values import json_ready
+from dg16m_core.cli import main as cli_main
+from dg16m_core.json_values import json_ready
 from dg16m_env.benchmark.build import build_benchmark
 from dg16m_env.benchmark.file import read_benchmark
 from dg16m_env.benchmark.model import ARMS, SOURCES, Benchmark, BenchmarkParameters

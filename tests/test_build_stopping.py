@@ -20,9 +20,9 @@ import trimesh
 
 pytest.importorskip("mujoco")
 
-from dataset_gen.budget import WALL_FACTOR, StageTimeoutError
-from dataset_gen.cli import EXIT_INTERRUPTED
 from dataset_gen.io import failed_entries, read_manifest
+from dg16m_core.budget import WALL_FACTOR, StageTimeoutError
+from dg16m_core.cli import EXIT_INTERRUPTED
 from dg16m_env.benchmark.build import BuildLimits, build_benchmark, timeout_verdict
 from dg16m_env.benchmark.model import BenchmarkError
 from dg16m_env.benchmark.real import MESH_LIMITS, REAL_LIMITS, REAL_PARAMETERS
@@ -195,7 +195,7 @@ def test_an_object_the_gripper_cannot_hold_is_rejected_at_the_screen_in_words(
     folder.mkdir()
     trimesh.creation.box((0.5, 0.5, 0.5)).export(folder / "crate.obj")
     out = tmp_path / "out"
-    from dataset_gen.cli import main as cli_main
+    from dg16m_core.cli import main as cli_main
 
     code = cli_main(["benchmark", "build", "--meshes", str(folder), "--out", str(out)])
     assert code == 1  # nothing admitted: no benchmark written

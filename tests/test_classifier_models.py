@@ -25,8 +25,8 @@ from baselines.grasp_geometry import (  # noqa: E402
     load_checkpoint,
     save_checkpoint,
 )
-from dataset_gen.errors import Dg16mError  # noqa: E402
-from dataset_gen.gripper import PANDA  # noqa: E402
+from dataset_gen.grasps.gripper import PANDA  # noqa: E402
+from dg16m_core.errors import Dg16mError  # noqa: E402
 
 # Small configurations: the tests check properties, not accuracy.
 SMALL_GPD = DualPointNetGPDConfig(

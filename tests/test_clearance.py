@@ -13,13 +13,13 @@ pytest.importorskip("coacd")
 
 from shipped_meshes import FAST, MESHES
 
-from dataset_gen.clearance import OpenHandClearance, collision_parts
-from dataset_gen.decomposition import convex_decomposition
-from dataset_gen.gripper import get_gripper
-from dataset_gen.objects import ConvexPart, make_object
-from dataset_gen.parameters import PAPER, PROTOCOL
-from dataset_gen.sampling import sample_antipodal_grasps
-from dataset_gen.sources import ObjectSource
+from dataset_gen.grasps.clearance import OpenHandClearance, collision_parts
+from dataset_gen.grasps.gripper import get_gripper
+from dataset_gen.grasps.sampling import sample_antipodal_grasps
+from dataset_gen.objects.decomposition import convex_decomposition
+from dataset_gen.objects.grasp_object import ConvexPart, make_object
+from dataset_gen.sources.object_source import ObjectSource
+from dg16m_core.parameters import PAPER, PROTOCOL
 from dg16m_env.physics.scene import compile_scene
 from dg16m_env.physics.trial_protocol import (
     InvalidReason,

@@ -16,7 +16,7 @@ import sys
 
 import pytest
 
-from dataset_gen.cli import add_command, build_parser
+from dg16m_core.cli import add_command, build_parser
 
 HEAVY = (
     "torch",
@@ -38,7 +38,7 @@ HEAVY = (
 numpy, about 0.09 s) is not among them: ``import dg16m_env``, which the ``dg16m_env`` command
 modules cannot avoid, registers the environments (DESIGN.md), and that imports Gymnasium."""
 
-BUILD_PARSER = "import sys; from dataset_gen.cli import build_parser; build_parser(); print(sorted(sys.modules))"
+BUILD_PARSER = "import sys; from dg16m_core.cli import build_parser; build_parser(); print(sorted(sys.modules))"
 
 #: Deferred parsers (their defaults live in modules that import trimesh or MuJoCo), each with a
 #: text its help shows once its arguments are added.
@@ -70,7 +70,7 @@ def _heavy(modules: list[str]) -> list[str]:
 
 def test_building_the_whole_parser_imports_no_heavy_library() -> None:
     modules = ast.literal_eval(_run("-c", BUILD_PARSER).stdout)  # that process's sys.modules
-    assert "dataset_gen.commands" in modules
+    assert "dataset_gen.cli.objects" in modules
     assert "leaderboard.commands" in modules
     assert _heavy(modules) == [], f"expected no heavy import, found {_heavy(modules)}"
 
@@ -80,7 +80,7 @@ def test_building_the_whole_parser_imports_no_heavy_library() -> None:
 CONSOLE_SCRIPT = (
     "import atexit, sys; "
     "atexit.register(lambda: sys.stderr.write(repr(sorted(sys.modules)))); "
-    "from dataset_gen.cli import main; sys.argv[0] = 'dg16m'; sys.exit(main())"
+    "from dg16m_core.cli import main; sys.argv[0] = 'dg16m'; sys.exit(main())"
 )
 
 
@@ -94,9 +94,9 @@ def test_help_and_version_import_no_heavy_library(option: str) -> None:
 
 
 def test_python_m_help_lists_the_commands_and_imports_no_heavy_library() -> None:
-    """``python -m dataset_gen.cli --help``, read with ``-X importtime`` (which reports the
+    """``python -m dg16m_core.cli --help``, read with ``-X importtime`` (which reports the
     modules imported by ``import`` statements: every heavy library comes in through one)."""
-    result = _run("-X", "importtime", "-m", "dataset_gen.cli", "--help")
+    result = _run("-X", "importtime", "-m", "dg16m_core.cli", "--help")
     assert "benchmark" in result.stdout
     assert "leaderboard" in result.stdout
     modules = [
@@ -111,9 +111,9 @@ def test_python_m_help_lists_the_commands_and_imports_no_heavy_library() -> None
 def test_the_version_is_the_installed_distributions() -> None:
     from importlib import metadata
 
-    from dataset_gen.distribution import DISTRIBUTION
+    from dg16m_core.distribution import DISTRIBUTION
 
-    assert _run("-m", "dataset_gen.cli", "--version").stdout.split() == [
+    assert _run("-m", "dg16m_core.cli", "--version").stdout.split() == [
         "dg16m",
         metadata.version(DISTRIBUTION),
     ]
@@ -173,6 +173,6 @@ def test_importing_the_package_registers_the_environments() -> None:
     code = (
         "import sys, gymnasium, dg16m_env; from dg16m_env.envs import env_ids; "
         "print(all(i in gymnasium.registry for i in env_ids(aliases=True)), "
-        "'dg16m_env.envs.dual_grasp_lift' in sys.modules, 'mujoco' in sys.modules)"
+        "'dg16m_env.envs.lift.task' in sys.modules, 'mujoco' in sys.modules)"
     )
     assert _run("-c", code).stdout.split() == ["True", "False", "False"]

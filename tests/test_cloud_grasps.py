@@ -16,9 +16,9 @@ from baselines.cloud_grasps import (
     hand_hits_cloud,
     sample_enclosing_grasps,
 )
-from dataset_gen.gripper import PANDA
-from dataset_gen.pairing import grippers_collide
-from dataset_gen.parameters import PAPER
+from dataset_gen.grasps.gripper import PANDA
+from dataset_gen.grasps.pairing import grippers_collide
+from dg16m_core.parameters import PAPER
 from dg16m_env.subjects.observation import surface_points
 
 HALF = np.array([0.25, 0.03, 0.15])

@@ -20,8 +20,8 @@ from baselines.cloud_predictor import (
     random_robust_predictor,
 )
 from baselines.cloud_robust import MIN_SIDE, MOTION_RATIO_LEVELS, cloud_inertia, robust_first
-from dataset_gen.parameters import PAPER
-from dataset_gen.robust import disturbance_motion
+from dataset_gen.grasps.robust import disturbance_motion
+from dg16m_core.parameters import PAPER
 from dg16m_env.evaluators import load_benchmark_ref
 from dg16m_env.subjects.observation import object_observation
 

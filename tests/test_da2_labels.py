@@ -22,7 +22,7 @@ from baselines.da2_labels import (
     quality_separation,
     roc_auc,
 )
-from baselines.pairing import BaselineError
+from baselines.pairing_baselines import BaselineError
 from dataset_gen.io import DualGraspSet
 
 X, Y, Z = np.eye(3)

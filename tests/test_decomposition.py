@@ -17,9 +17,8 @@ pytest.importorskip("coacd")
 
 from shipped_meshes import FAST, MESHES
 
-from dataset_gen import decomposition as dec
-from dataset_gen.cli import main
-from dataset_gen.decomposition import (
+from dataset_gen.objects import decomposition as dec
+from dataset_gen.objects.decomposition import (
     DecompositionParameters,
     DecompositionReport,
     convex_decomposition,
@@ -30,9 +29,10 @@ from dataset_gen.decomposition import (
     object_parts,
     parts_to_obj,
 )
-from dataset_gen.errors import MeshError
-from dataset_gen.objects import ConvexPart, make_object, parts_to_mesh
-from dataset_gen.procedural import make_procedural_object
+from dataset_gen.objects.grasp_object import ConvexPart, make_object, parts_to_mesh
+from dataset_gen.sources.procedural import make_procedural_object
+from dg16m_core.cli import main
+from dg16m_core.errors import MeshError
 
 
 @pytest.fixture(scope="module")
@@ -376,7 +376,7 @@ def test_coacd_own_auto_remeshes_a_watertight_real_mesh_and_ours_does_not(
     # and hulls the mesh itself).
     import coacd
 
-    from dataset_gen.objects import load_object
+    from dataset_gen.objects.grasp_object import load_object
 
     mesh = load_object(MESHES / "dining_chair.obj").mesh
     assert mesh.is_volume

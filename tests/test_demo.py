@@ -13,7 +13,7 @@ pytest.importorskip("mujoco")
 pytest.importorskip("starlette")
 
 from baselines.demo import MARKER, DemoError, demo_steps, prepare_folder, run_demo
-from dataset_gen.cli import main as cli_main
+from dg16m_core.cli import main as cli_main
 
 
 def test_the_demo_runs_end_to_end(tmp_path: Path) -> None:

@@ -154,7 +154,7 @@ def test_pictures_are_small() -> None:
 
 def test_tutorial_predictor_gives_valid_grasps() -> None:
     """The tutorial's toy predictor returns what a submission accepts, for a real observation."""
-    from dataset_gen.procedural import make_procedural_object
+    from dataset_gen.sources.procedural import make_procedural_object
     from dg16m_env.benchmark.file import read_benchmark
     from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
     from dg16m_env.subjects.observation import object_observation

@@ -22,15 +22,12 @@ from dg16m_env.benchmark.file import read_benchmark, write_benchmark
 from dg16m_env.benchmark.model import Benchmark
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.envs import NAMESPACE
-from dg16m_env.envs.dual_grasp_lift import (
-    ACTION_SIZE,
-    OBS_SIZE,
-    OBS_SLICES,
-    TABLE_MARGIN,
-    DualGraspLiftEnv,
-)
-from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
-from dg16m_env.envs.lift_reward import REWARD_WEIGHTS
+from dg16m_env.envs.lift.experts import ScriptedLiftPolicy
+from dg16m_env.envs.lift.reward import REWARD_WEIGHTS
+from dg16m_env.envs.lift.scenes import TABLE_MARGIN
+from dg16m_env.envs.lift.spaces import ACTION_SIZE, OBS_SIZE, OBS_SLICES
+from dg16m_env.envs.lift.v0 import DualGraspLiftEnv
+from dg16m_env.envs.lift.versions import V0_REWARD_FLAW
 from dg16m_env.envs.spaces import rotation_from_6d
 from dg16m_env.physics.lift_scene import hand_points, lowest_hand_z
 from dg16m_env.physics.replay import RenderError, make_renderer
@@ -39,6 +36,16 @@ LIFT = f"{NAMESPACE}/DualGraspLift-v0"
 OBJECTS = ["tub-1000013", "ladder-1000012", "board-1000026", "shelf-1000011"]
 LIFTABLE = OBJECTS[:3]  # three families the scripted policy lifts
 NO_TARGET = "shelf-1000011"  # no force-closure pass with p >= 0.5: no benchmark target
+
+# Every test here makes v0 on purpose: its deprecation (the reward flaw) and Gymnasium's note
+# that a newer version is registered are the expected warnings
+# (test_making_v0_warns_that_it_is_deprecated_and_names_its_reward_flaw checks the first).
+pytestmark = [
+    pytest.mark.filterwarnings(
+        "ignore:dg16m_env/DualGraspLift-v0 is deprecated:DeprecationWarning"
+    ),
+    pytest.mark.filterwarnings("ignore:.*is out of date.*upgrading to version:DeprecationWarning"),
+]
 
 
 @pytest.fixture(scope="module")
@@ -70,9 +77,25 @@ def can_render(bench_path: Path) -> bool:
 def strict() -> Iterator[None]:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        # Gymnasium's own note that a newer version (v1) is registered, the one expected warning.
+        # Gymnasium's own note that a newer version is registered and v0's deprecation, the
+        # expected warnings.
         warnings.filterwarnings("ignore", message=".*is out of date.*upgrading to version")
+        warnings.filterwarnings("ignore", message="dg16m_env/DualGraspLift-v0 is deprecated")
         yield
+
+
+def test_making_v0_warns_that_it_is_deprecated_and_names_its_reward_flaw(bench_path: Path) -> None:
+    """v0 stays registered for one release; ``gym.make`` says why to move on (its dense reward
+    pays a hover more than a success), pointing at the caller's line."""
+    with pytest.warns(DeprecationWarning, match="hovers earns more than one that completes") as rec:
+        env = gym.make(LIFT, benchmark=bench_path, object_ids=LIFTABLE[:1])
+    env.close()
+    ours = [w for w in rec if str(w.message) == V0_REWARD_FLAW]
+    assert ours
+    assert ours[0].filename == __file__
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        gym.make(f"{NAMESPACE}/DualGraspLift-v2", benchmark=bench_path).close()
 
 
 def _env(bench_path: Path, **kwargs: Any) -> gym.Env:

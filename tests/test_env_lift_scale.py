@@ -24,11 +24,19 @@ from dg16m_env.benchmark.file import LazyBenchmarkObject, read_benchmark  # noqa
 from dg16m_env.benchmark.model import BenchmarkError  # noqa: E402
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK  # noqa: E402
 from dg16m_env.envs import NAMESPACE  # noqa: E402
-from dg16m_env.envs.dual_grasp_lift import DualGraspLiftEnv  # noqa: E402
-from dg16m_env.envs.lift_expert import ScriptedLiftPolicy  # noqa: E402
+from dg16m_env.envs.lift.experts import ScriptedLiftPolicy  # noqa: E402
+from dg16m_env.envs.lift.v0 import DualGraspLiftEnv  # noqa: E402
 from dg16m_env.physics.replay import RenderError, make_renderer  # noqa: E402
 
 LIFT = f"{NAMESPACE}/DualGraspLift-v0"
+
+# v0 is made on purpose: its deprecation and Gymnasium's note of a newer version are expected.
+pytestmark = [
+    pytest.mark.filterwarnings(
+        "ignore:dg16m_env/DualGraspLift-v0 is deprecated:DeprecationWarning"
+    ),
+    pytest.mark.filterwarnings("ignore:.*is out of date.*upgrading to version:DeprecationWarning"),
+]
 TINY_REAL = Path(__file__).parent / "data" / "real_tiny" / "benchmark.h5"
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 

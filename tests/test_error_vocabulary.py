@@ -10,7 +10,7 @@ import gymnasium as gym
 import pytest
 
 import dg16m_env  # noqa: F401  registers the environments
-from dataset_gen.cli import main
+from dg16m_core.cli import main
 from dg16m_env.envs import env_ids
 from dg16m_env.envs.common import EnvArgumentError
 
@@ -82,6 +82,7 @@ def test_an_empty_hdf5_file_reads_the_same_in_inspect_validate_evaluate_and_info
 
 
 @pytest.mark.parametrize("env_id", env_ids())
+@pytest.mark.filterwarnings("ignore:dg16m_env/DualGraspLift-v0 is deprecated:DeprecationWarning")
 def test_render_mode_human_is_refused_at_construction(env_id: str) -> None:
     """Not wrapped in HumanRendering by gym.make (that fails at reset without pygame)."""
     with pytest.raises(EnvArgumentError) as err:

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dataset_gen.cli import main
-from dataset_gen.hashing import file_sha256
+from dg16m_core.cli import main
+from dg16m_core.hashing import file_sha256
 from dg16m_env.benchmark.file import read_benchmark, write_benchmark
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.evaluators import load_benchmark_ref, read_results

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from dataset_gen.cli import main
+from dg16m_core.cli import main
 from dg16m_env.evaluators import gsr, load_benchmark_ref, read_results
 from dg16m_env.subjects.submission_writer import PartialSubmissionWarning, write_submission
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dataset_gen.cli import main
+from dg16m_core.cli import main
 from dg16m_env.benchmark.model import BenchmarkError
 from dg16m_env.benchmark.names import REAL_BENCHMARK
 from dg16m_env.evaluators import load_benchmark_ref, make, read_results

@@ -9,9 +9,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dataset_gen.hashing import file_sha256
 from dataset_gen.io import package_version
-from dataset_gen.sources import object_seed
+from dataset_gen.sources.object_source import object_seed
+from dg16m_core.hashing import file_sha256
 from dg16m_env.benchmark.file import read_benchmark, write_benchmark
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref

@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from dataset_gen.errors import Dg16mError
-from dataset_gen.hashing import file_sha256
 from dataset_gen.io import package_version
+from dg16m_core.errors import Dg16mError
+from dg16m_core.hashing import file_sha256
 from dg16m_env import evaluators
 from dg16m_env.benchmark.file import read_benchmark, write_benchmark
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
@@ -196,16 +196,16 @@ def test_gsr_counts_invalid_and_unsimulatable_grasps_as_failures(small, monkeypa
     poses = {i: np.array(p, copy=True) for i, p in sub.poses.items()}
     table = poses["table-1000000"]
     table[0, 0, :3, 3] = 0.0  # an open hand at the centre of mass: the trial is invalid
-    import dg16m_env.physics.gsr_core as gsr_core
+    import dg16m_env.physics.success_probabilities as success_probabilities
 
-    real = gsr_core.evaluate_object
+    real = success_probabilities.evaluate_object
 
     def broken(job, *args, **kwargs):
         if job.object_id == "crate-1000006":
             raise Dg16mError("mesh: expected a watertight mesh, found a broken one")
         return real(job, *args, **kwargs)
 
-    monkeypatch.setattr(gsr_core, "evaluate_object", broken)
+    monkeypatch.setattr(success_probabilities, "evaluate_object", broken)
     result = make("gsr", benchmark=small, n_perturbations=1).evaluate(Submission(poses=poses))
     assert result.failures == {
         "crate-1000006": "mesh: expected a watertight mesh, found a broken one"

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dataset_gen.errors import ForceClosureError, SolverError
 from dataset_gen.force_closure import (
     SOLVED_CLARABEL,
     SOLVED_CLARABEL_TIGHT,
@@ -20,7 +19,8 @@ from dataset_gen.force_closure import (
     project_cone_ball,
 )
 from dataset_gen.force_closure.synthetic import FAMILIES, family_pairs
-from dataset_gen.parameters import PAPER
+from dg16m_core.errors import ForceClosureError, SolverError
+from dg16m_core.parameters import PAPER
 
 METHODS = ["fast", "clarabel"]
 UP = np.array([0.0, 0.0, 60.0])

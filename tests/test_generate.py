@@ -13,18 +13,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dataset_gen.cli import main
 from dataset_gen.force_closure import evaluate
-from dataset_gen.generate import (
+from dataset_gen.io import read_dg16m, read_manifest
+from dataset_gen.pipeline.generate import (
     GenerationError,
     GenerationParameters,
     generate_dataset,
     generate_object,
 )
-from dataset_gen.io import read_dg16m, read_manifest
-from dataset_gen.parameters import PAPER
-from dataset_gen.procedural import make_procedural_object
-from dataset_gen.sources import mesh_sources, object_seed, procedural_sources
+from dataset_gen.sources.object_source import mesh_sources, object_seed, procedural_sources
+from dataset_gen.sources.procedural import make_procedural_object
+from dg16m_core.cli import main
+from dg16m_core.parameters import PAPER
 
 SMALL = GenerationParameters(n_grasps=60, max_passing=50, max_failing=50)
 SPECS = [("table", 0), ("ladder", 1), ("crate", 2)]
@@ -115,8 +115,8 @@ def test_ids_select_a_subset_of_a_mesh_folder(
     and --ids without --meshes are refused before anything runs."""
     import json
 
-    from dataset_gen.errors import MeshError
-    from dataset_gen.sources import read_ids, select_sources
+    from dataset_gen.sources.object_source import read_ids, select_sources
+    from dg16m_core.errors import MeshError
 
     meshes = tmp_path / "meshes"
     meshes.mkdir()
@@ -146,8 +146,8 @@ def test_kill_9_then_resume_gives_the_same_bytes(tmp_path: Path) -> None:
     generate_dataset(procedural_sources(SPECS), reference, SMALL, progress=False)
     out = tmp_path / "killed"
     script = (
-        "from dataset_gen.generate import *\n"
-        "from dataset_gen.sources import procedural_sources\n"
+        "from dataset_gen.pipeline.generate import *\n"
+        "from dataset_gen.sources.object_source import procedural_sources\n"
         f"p = GenerationParameters(n_grasps=60, max_passing=50, max_failing=50)\n"
         f"generate_dataset(procedural_sources({SPECS!r}), {str(out)!r}, p, progress=False)\n"
     )

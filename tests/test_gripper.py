@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from dataset_gen.errors import GripperError
-from dataset_gen.gripper import (
+from dataset_gen.grasps.gripper import (
     GRIPPERS,
     PANDA,
     ROBOTIQ_2F85,
@@ -18,7 +17,8 @@ from dataset_gen.gripper import (
     get_gripper,
     transform_points,
 )
-from dataset_gen.objects import make_object
+from dataset_gen.objects.grasp_object import make_object
+from dg16m_core.errors import GripperError
 
 
 def _plank(thickness: float = 0.03, x_offset: float = 0.0):
@@ -163,7 +163,7 @@ def test_release_contacts_lie_between_the_robotiq_fingers(real_data: Path) -> No
 @pytest.mark.real_data
 def test_acronym_panda_grasps_close_on_the_mug(real_data: Path) -> None:
     from dataset_gen.io import read_acronym
-    from dataset_gen.objects import load_object
+    from dataset_gen.objects.grasp_object import load_object
 
     acr = read_acronym(real_data / "acronym_mug_10f6e090.h5")
     mug = load_object(real_data / "acronym_mug_10f6e090.obj", scale=acr.object_scale, center=False)
@@ -175,7 +175,7 @@ def test_acronym_panda_grasps_close_on_the_mug(real_data: Path) -> None:
 
 
 def test_the_collision_checker_is_built_once_per_mesh_and_dropped_when_it_changes():
-    from dataset_gen.gripper import _collision_checker
+    from dataset_gen.grasps.gripper import _collision_checker
 
     mesh = trimesh.creation.box(extents=(0.04, 0.03, 0.03))
     first = _collision_checker(mesh, PANDA, PANDA.max_opening)

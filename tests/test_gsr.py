@@ -7,11 +7,16 @@ import pytest
 
 pytest.importorskip("mujoco")
 
-from dataset_gen.sources import ObjectSource, procedural_sources
+from dataset_gen.sources.object_source import ObjectSource, procedural_sources
 from dg16m_env.benchmark.file import read_benchmark
 from dg16m_env.benchmark.model import Benchmark
-from dg16m_env.physics.gsr_core import GraspJob, GsrError, evaluate_objects, jobs_from_mapping
 from dg16m_env.physics.labels import PerturbationSpec
+from dg16m_env.physics.success_probabilities import (
+    GraspJob,
+    GsrError,
+    evaluate_objects,
+    jobs_from_mapping,
+)
 from dg16m_env.physics.trial_protocol import TrialResults
 
 

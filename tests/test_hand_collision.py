@@ -26,8 +26,8 @@ from baselines.hand_collision import (
     n_features,
 )
 from baselines.train_hand_collision import Args, main, object_hands
-from dataset_gen.parameters import PROTOCOL
-from dataset_gen.procedural import make_procedural_object
+from dataset_gen.sources.procedural import make_procedural_object
+from dg16m_core.parameters import PROTOCOL
 from dg16m_env.physics.scene import compile_scene
 from dg16m_env.physics.trial_protocol import open_hand_penetration
 from dg16m_env.subjects.observation import object_observation

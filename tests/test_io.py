@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 
 import dataset_gen.io as dio
-from dataset_gen.errors import GraspFileError
 from dataset_gen.io import (
     ACRONYM_TO_DG16M,
     MANIFEST_NAME,
@@ -35,6 +34,7 @@ from dataset_gen.io import (
     write_dg16m,
     write_manifest,
 )
+from dg16m_core.errors import GraspFileError
 
 N = 12
 

@@ -14,12 +14,12 @@ pytest.importorskip("mujoco")
 
 from planks import DOWN, SIDE, THICKNESS, dual, hand, plank
 
-from dataset_gen.errors import Dg16mError
-from dataset_gen.gripper import PANDA
-from dataset_gen.pairing import candidate_pairs, score_pairs
-from dataset_gen.procedural import benchmark_specs
-from dataset_gen.sampling import sample_antipodal_grasps
-from dataset_gen.sources import object_seed, procedural_sources
+from dataset_gen.grasps.gripper import PANDA
+from dataset_gen.grasps.pairing import candidate_pairs, score_pairs
+from dataset_gen.grasps.sampling import sample_antipodal_grasps
+from dataset_gen.sources.object_source import object_seed, procedural_sources
+from dataset_gen.sources.procedural import benchmark_specs
+from dg16m_core.errors import Dg16mError
 from dg16m_env.benchmark.arms import sampled_pairs
 from dg16m_env.benchmark.model import SOURCES, BenchmarkParameters
 from dg16m_env.physics.labels import (

@@ -65,13 +65,12 @@ def test_from_imports_of_old_paths_work() -> None:
     name of the Lift module."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
+        from dg16m_env.envs.dual_grasp_lift import ScriptedLiftPolicy as Old
         from dg16m_env.evaluators.context import BenchmarkRef as OldRef
         from dg16m_env.submission import read_submission, write_submission
         from dg16m_env.trial import TrialStatus, judge, run_trials
-
-        from dg16m_env.envs.dual_grasp_lift import ScriptedLiftPolicy as Old
     from dg16m_env.benchmark.ref import BenchmarkRef
-    from dg16m_env.envs.lift_expert import ScriptedLiftPolicy
+    from dg16m_env.envs.lift.experts import ScriptedLiftPolicy
     from dg16m_env.physics import trial, trial_measures, trial_protocol
     from dg16m_env.subjects import submission_reader, submission_writer
 
@@ -146,5 +145,5 @@ def test_the_commands_and_environments_keep_their_entry_points() -> None:
         if ep.name.startswith("dg16m_env"):
             assert callable(ep.load())
     assert gymnasium.spec("dg16m_env/DualGraspLift-v0").entry_point == (
-        "dg16m_env.envs.dual_grasp_lift:DualGraspLiftEnv"
+        "dg16m_env.envs.lift.v0:DualGraspLiftEnv"
     )

@@ -14,7 +14,7 @@ import pytest
 from leaderboard_data import db_dump, set_benchmark, small_benchmark, tree, valid_submission
 from test_submission import CORPUS, IDS, SHA
 
-from dataset_gen.hashing import file_sha256
+from dg16m_core.hashing import file_sha256
 from dg16m_env.subjects.submission import SubmissionInvalid
 from leaderboard.board import (
     Board,

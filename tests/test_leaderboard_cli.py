@@ -13,7 +13,7 @@ import pytest
 from browser import console_log, order, page_problems, screenshot, start_browser, wait_for_script
 from leaderboard_data import db_dump, small_benchmark, valid_submission
 
-from dataset_gen.cli import main
+from dg16m_core.cli import main
 from leaderboard.board import Board
 
 

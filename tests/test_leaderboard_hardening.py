@@ -26,14 +26,14 @@ from starlette.exceptions import StarletteDeprecationWarning
 
 from leaderboard.app import SECURITY_HEADERS, ServiceConfig, create_app
 from leaderboard.board import Board, NotFoundError
-from leaderboard.checks import MAX_ID, check_id
+from leaderboard.query_checks import MAX_ID, check_id
 from leaderboard.worker import Scorer, WorkerOptions, score_claim
 
 with warnings.catch_warnings():  # starlette asks for httpx2, which is not installed
     warnings.simplefilter("ignore", StarletteDeprecationWarning)
     from starlette.testclient import TestClient
 
-CLI = [sys.executable, "-m", "dataset_gen.cli", "leaderboard"]
+CLI = [sys.executable, "-m", "dg16m_core.cli", "leaderboard"]
 CSP = SECURITY_HEADERS["Content-Security-Policy"]
 
 
@@ -212,7 +212,7 @@ def test_pages_are_rendered_off_the_event_loop(
 ) -> None:
     import asyncio
 
-    import leaderboard.app
+    import leaderboard.routes.site
 
     app = make_app(tmp_path, bench)
     (sid,) = scored_rows(app.board, "lab-a", 1)
@@ -230,7 +230,8 @@ def test_pages_are_rendered_off_the_event_loop(
         return wrapper
 
     for name in ("render_index", "render_submission"):
-        monkeypatch.setattr(leaderboard.app, name, watched(getattr(leaderboard.app, name)))
+        module = leaderboard.routes.site
+        monkeypatch.setattr(module, name, watched(getattr(module, name)))
     assert app.client.get("/").status_code == 200
     assert app.client.get(f"/submissions/{sid}").status_code == 200
     assert on_loop == [False, False]
@@ -280,11 +281,11 @@ def test_orphaned_files_are_removed_at_start_and_files_in_use_kept(
 def test_submit_hashes_the_file_once(
     tmp_path: Path, bench: Path, good: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import dataset_gen.hashing
+    import dg16m_core.hashing
     import dg16m_env.subjects.submission_reader
 
     calls: list[str] = []
-    real = dataset_gen.hashing.file_sha256
+    real = dg16m_core.hashing.file_sha256
 
     def counted(path: Any) -> str:
         calls.append(str(path))

@@ -33,7 +33,7 @@ from leaderboard_data import db_dump, small_benchmark, tree, valid_submission
 from leaderboard.board import Board
 from leaderboard.tokens import new_token
 
-CLI = [sys.executable, "-m", "dataset_gen.cli", "leaderboard"]
+CLI = [sys.executable, "-m", "dg16m_core.cli", "leaderboard"]
 RATE_LIMIT = 25
 MAX_UPLOAD = 60_000  # bytes; a 3-object submission is ~10-20 kB
 START_TIMEOUT_S = 60.0
@@ -472,7 +472,7 @@ def test_json_answers_and_headers(service: Service) -> None:
 def test_command_line_submits_to_the_service(
     service: Service, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from dataset_gen.cli import main
+    from dg16m_core.cli import main
 
     token_file = tmp_path / "bob.token"
     token_file.write_text(service.tokens["bob"] + "\n")

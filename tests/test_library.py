@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from dataset_gen import io
-from dataset_gen.errors import Dg16mError, MeshError
-from dataset_gen.library import load_library_object, read_parts, write_procedural_library
+from dataset_gen.sources.library import load_library_object, read_parts, write_procedural_library
+from dg16m_core.errors import Dg16mError, MeshError
 
 
 @pytest.fixture(scope="module")

@@ -21,7 +21,7 @@ from baselines.lift_bc_policy import (
     make_network,
     world_actions,
 )
-from dg16m_env.envs.lift_feedback_expert import FeedbackLiftExpert
+from dg16m_env.envs.lift.experts import FeedbackLiftExpert
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Lift demonstrations in Minari format (:mod:`dg16m_env.envs.lift_demos`, ``dg16m demos``):
+"""Lift demonstrations in Minari format (:mod:`dg16m_env.envs.lift.demos`, ``dg16m demos``):
 a dataset written and found by ``minari.load_dataset`` under ``MINARI_DATASETS_PATH``, with its
 spaces and metadata; replays identical, a tampered action found; no overwrite without force; the
 same bytes for 1 and 2 workers; the command line. Tiny datasets (2-3 episodes, short ones
@@ -18,23 +18,22 @@ minari = pytest.importorskip("minari", reason="minari is not installed: pip inst
 pytest.importorskip("mujoco", reason="MuJoCo is not installed: pip install -e '.[sim]'")
 h5py = pytest.importorskip("h5py")
 
-from dataset_gen.cli import main  # noqa: E402
-from dg16m_env.envs.lift_demos import (  # noqa: E402
+from dg16m_core.cli import main  # noqa: E402
+from dg16m_env.envs.lift.demo_files import (  # noqa: E402
     DEFAULT_DATASET_ID,
     ENV_ID,
     ENV_IDS,
     METADATA_KEY,
     LiftDemosError,
-    collect_lift_demos,
     demos_metadata,
     episode_metadata,
     open_lift_demos,
     replay_lift_demo,
-    select_objects,
     summarize_lift_demos,
 )
-from dg16m_env.envs.lift_observations import STATE_LAYOUT, STATE_SIZE  # noqa: E402
-from dg16m_env.envs.lift_spaces import ACTION_SIZE  # noqa: E402
+from dg16m_env.envs.lift.demos import collect_lift_demos, select_objects  # noqa: E402
+from dg16m_env.envs.lift.observations import STATE_LAYOUT, STATE_SIZE  # noqa: E402
+from dg16m_env.envs.lift.spaces import ACTION_SIZE  # noqa: E402
 from dg16m_env.envs.objects import split_objects  # noqa: E402
 
 SHORT = {"episode_steps": 25}
@@ -247,7 +246,7 @@ def test_command_line(
 
 def test_the_installed_command_shows_its_help() -> None:
     done = subprocess.run(
-        [sys.executable, "-m", "dataset_gen.cli", "demos", "collect", "--help"],
+        [sys.executable, "-m", "dg16m_core.cli", "demos", "collect", "--help"],
         capture_output=True,
         text=True,
         timeout=120,

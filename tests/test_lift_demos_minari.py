@@ -1,4 +1,4 @@
-"""Lift demonstrations as a Minari dataset (:mod:`dg16m_env.envs.lift_demos`): a tiny dataset is
+"""Lift demonstrations as a Minari dataset (:mod:`dg16m_env.envs.lift.demos`): a tiny dataset is
 written, loaded with ``minari`` by name, replayed step for step identically; a changed action is
 caught; an existing dataset is not overwritten."""
 
@@ -11,13 +11,13 @@ import pytest
 
 minari = pytest.importorskip("minari")
 
-from dg16m_env.envs.lift_demos import (  # noqa: E402
+from dg16m_env.envs.lift.demo_files import (  # noqa: E402
     LiftDemosError,
-    collect_lift_demos,
     episode_metadata,
     open_lift_demos,
     replay_lift_demo,
 )
+from dg16m_env.envs.lift.demos import collect_lift_demos  # noqa: E402
 
 
 @pytest.fixture(scope="module")

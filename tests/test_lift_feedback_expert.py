@@ -1,4 +1,4 @@
-"""FeedbackLiftExpert (:mod:`dg16m_env.envs.lift_feedback_expert`): a pure function of the
+"""FeedbackLiftExpert (:mod:`dg16m_env.envs.lift.experts`): a pure function of the
 DualGraspLift-v1 observation (same observation, same action, in any order, nothing remembered),
 a clear error without a target, the three observation modes alike, and episodes of the
 procedural benchmark it completes: as is, after the object was moved under it, and after 30
@@ -14,9 +14,14 @@ import numpy as np
 import pytest
 
 import dg16m_env  # noqa: F401  registers the environments
-from dg16m_env.envs.lift_feedback_expert import FeedbackLiftExpert
-from dg16m_env.envs.lift_observations import STATE_LAYOUT, STATE_SLICES
-from dg16m_env.envs.lift_spaces import ACTION_SIZE
+from dg16m_env.envs.lift.experts import FeedbackLiftExpert
+from dg16m_env.envs.lift.observations import STATE_LAYOUT, STATE_SLICES
+from dg16m_env.envs.lift.spaces import ACTION_SIZE
+
+# v1 is made on purpose: Gymnasium's note that a newer version (v2) is registered is expected.
+pytestmark = pytest.mark.filterwarnings(
+    "ignore:.*DualGraspLift-v1 is out of date.*:DeprecationWarning"
+)
 
 LIFT_V1 = "dg16m_env/DualGraspLift-v1"
 SEED = 42

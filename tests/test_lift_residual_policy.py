@@ -27,7 +27,7 @@ from baselines.lift_residual_policy import (
     LiftResidualPolicy,
     compose_actions,
 )
-from dg16m_env.envs.lift_feedback_expert import FeedbackLiftExpert
+from dg16m_env.envs.lift.experts import FeedbackLiftExpert
 
 
 def tiny_base(seed: int = 0) -> LiftBCPolicy:

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from dataset_gen.errors import MeshError
-from dataset_gen.objects import (
+from dataset_gen.objects.grasp_object import (
     ConvexPart,
     clean_mesh,
     is_rigid,
@@ -20,6 +19,7 @@ from dataset_gen.objects import (
     part_from_dict,
     parts_to_mesh,
 )
+from dg16m_core.errors import MeshError
 
 BOX_EXTENTS = (0.4, 0.2, 0.1)
 
@@ -173,7 +173,7 @@ def test_implausible_sizes_suggest_a_scale(
 
 
 def test_dual_arm_range_constants_match_the_messages() -> None:
-    from dataset_gen.objects import DUAL_ARM_MAX_EXTENT_M, DUAL_ARM_MIN_EXTENT_M
+    from dataset_gen.objects.grasp_object import DUAL_ARM_MAX_EXTENT_M, DUAL_ARM_MIN_EXTENT_M
 
     assert (DUAL_ARM_MIN_EXTENT_M, DUAL_ARM_MAX_EXTENT_M) == (0.05, 5.0)
 
@@ -300,9 +300,9 @@ def test_real_airplane_mesh_matches_the_release_frame(real_data: Path) -> None:
 
 def test_contact_sheet_tick_labels_do_not_touch() -> None:
     """Each small 3D view's tick labels stand apart (they ran together at five ticks a side)."""
-    from dataset_gen.figures import new_figure
-    from dataset_gen.procedural import make_procedural_object
-    from dataset_gen.render import _setup_axes
+    from dataset_gen.pipeline.render import _setup_axes
+    from dataset_gen.sources.procedural import make_procedural_object
+    from dg16m_core.figures import new_figure
 
     fig = new_figure(3.0, 3.0)
     ax = fig.add_subplot(1, 1, 1, projection="3d")

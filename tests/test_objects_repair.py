@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from dataset_gen.cli import main
-from dataset_gen.errors import MeshError
-from dataset_gen.repair_meshes import REPAIR_KIND, TYPICAL_EXTENT_M, decide_units
+from dataset_gen.real.own_meshes import REPAIR_KIND, TYPICAL_EXTENT_M, decide_units
+from dg16m_core.cli import main
+from dg16m_core.errors import MeshError
 
 FAST = ["--pitch-fraction", "0.05", "--no-progress"]
 
@@ -112,8 +112,8 @@ def test_a_shell_a_centimetre_and_a_millimetre_mesh_become_solids_in_metres(
     assert np.allclose(sorted(chair["extents_m"]), [0.45, 0.45, 0.9])
 
     # what `benchmark build --meshes OUT` reads: every mesh loads in metres, no size complaint
-    from dataset_gen.objects import load_object
-    from dataset_gen.sources import mesh_sources
+    from dataset_gen.objects.grasp_object import load_object
+    from dataset_gen.sources.object_source import mesh_sources
 
     sources = mesh_sources(out)
     assert [s.object_id for s in sources] == ["chair_mm", "table", "table_cm"]

@@ -8,8 +8,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from dataset_gen.force_closure import evaluate
-from dataset_gen.gripper import PANDA
-from dataset_gen.pairing import (
+from dataset_gen.grasps.gripper import PANDA
+from dataset_gen.grasps.pairing import (
     STRATEGIES,
     PairingError,
     candidate_pairs,
@@ -25,8 +25,8 @@ from dataset_gen.pairing import (
     select_pairs,
     strategy_pass_rates,
 )
-from dataset_gen.procedural import make_procedural_object
-from dataset_gen.sampling import SingleArmGrasps, sample_antipodal_grasps
+from dataset_gen.grasps.sampling import SingleArmGrasps, sample_antipodal_grasps
+from dataset_gen.sources.procedural import make_procedural_object
 
 # --------------------------------------------------------------------------------------------
 # Helpers
@@ -231,7 +231,9 @@ def test_bad_inputs_say_what_was_expected() -> None:
         dual_poses(grasps, np.array([[2, 2]]))
     with pytest.raises(PairingError, match=r"expected shape \(P, 2\)"):
         dual_contacts(grasps, np.array([0, 1, 2]))
-    with pytest.raises(PairingError, match=r"expected a dataset_gen\.sampling\.SingleArmGrasps"):
+    with pytest.raises(
+        PairingError, match=r"expected a dataset_gen\.grasps\.sampling\.SingleArmGrasps"
+    ):
         candidate_pairs(np.zeros((4, 4, 4)))  # type: ignore[arg-type]
     with pytest.raises(PairingError, match="min_center_distance: expected a finite number >= 0"):
         candidate_pairs(grasps, min_center_distance=-1.0)
@@ -406,8 +408,8 @@ def test_selection_parameters_are_checked(table_grasps: SingleArmGrasps) -> None
 def test_defaults_are_the_papers() -> None:
     import inspect
 
-    from dataset_gen import pairing
-    from dataset_gen.parameters import PAPER
+    from dataset_gen.grasps import pairing
+    from dg16m_core.parameters import PAPER
 
     assert pairing.DEFAULT_MIN_CENTER_DISTANCE == PAPER.min_center_distance == 0.1
     assert pairing.DEFAULT_MAX_PASSING == PAPER.max_passing == 2000

@@ -1,4 +1,4 @@
-"""Ctrl-C on a run (dataset_gen.parallel): the pool stops without finishing its tasks, and an
+"""Ctrl-C on a run (dataset_gen.pipeline.parallel): the pool stops without finishing its tasks, and an
 interrupt Python swallowed during a task still stops the run after it."""
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from dataset_gen.errors import Dg16mError
 from dataset_gen.io import read_manifest
-from dataset_gen.parallel import run_resumable
+from dataset_gen.pipeline.parallel import run_resumable
+from dg16m_core.errors import Dg16mError
 
 
 @dataclass(frozen=True)
@@ -64,8 +64,8 @@ import signal, sys, time
 signal.signal(signal.SIGINT, signal.default_int_handler)
 from dataclasses import dataclass
 from pathlib import Path
-from dataset_gen.errors import Dg16mError
-from dataset_gen.parallel import run_resumable
+from dg16m_core.errors import Dg16mError
+from dataset_gen.pipeline.parallel import run_resumable
 
 @dataclass(frozen=True)
 class Item:
@@ -109,7 +109,7 @@ def test_ctrl_c_stops_a_pool_without_waiting_for_its_tasks(tmp_path: Path) -> No
 def test_a_ray_address_where_nothing_answers_is_refused_at_once() -> None:
     import socket
 
-    from dataset_gen.parallel import ParallelError, check_ray_address
+    from dataset_gen.pipeline.parallel import ParallelError, check_ray_address
 
     check_ray_address("auto")  # left to Ray
     with socket.socket() as server:  # something answering on loopback

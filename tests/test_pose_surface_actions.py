@@ -15,7 +15,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import dg16m_env  # noqa: F401  registers the environments
-from dataset_gen.gripper import PANDA
+from dataset_gen.grasps.gripper import PANDA
 from dg16m_env.benchmark.file import read_benchmark, write_benchmark
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.envs.common import (

@@ -297,7 +297,7 @@ def predict(observation):
 # Python's own SIGINT handler, as in a terminal (a background job starts with SIGINT ignored)
 CLI_MAIN = (
     "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-    "from dataset_gen.cli import main; sys.exit(main(sys.argv[1:]))"
+    "from dg16m_core.cli import main; sys.exit(main(sys.argv[1:]))"
 )
 
 

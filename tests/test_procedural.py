@@ -1,4 +1,4 @@
-"""Tests for the procedural object library (dataset_gen.procedural)."""
+"""Tests for the procedural object library (dataset_gen.sources.procedural)."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from functools import cache
 import numpy as np
 import pytest
 
-from dataset_gen import procedural
-from dataset_gen.objects import ConvexPart, GraspObject
-from dataset_gen.procedural import (
+from dataset_gen.objects.grasp_object import ConvexPart, GraspObject
+from dataset_gen.sources import procedural
+from dataset_gen.sources.procedural import (
     BENCHMARK_PER_FAMILY,
     BENCHMARK_SEED_BASE,
     FAMILIES,
@@ -306,7 +306,7 @@ def test_same_bytes_in_another_process() -> None:
     family, seed = "barrel_with_handles", 12
     code = (
         "import hashlib, sys\n"
-        "from dataset_gen.procedural import make_procedural_object\n"
+        "from dataset_gen.sources.procedural import make_procedural_object\n"
         f"obj = make_procedural_object({family!r}, {seed})\n"
         "sys.stdout.write(hashlib.sha256(obj.mesh.export(file_type='obj').encode()).hexdigest())\n"
     )

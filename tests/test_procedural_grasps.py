@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from dataset_gen.gripper import PANDA, ContactStatus, contacts_from_pose
-from dataset_gen.procedural import FAMILIES, make_procedural_object
+from dataset_gen.grasps.gripper import PANDA, ContactStatus, contacts_from_pose
+from dataset_gen.sources.procedural import FAMILIES, make_procedural_object
 
 
 def _antipodal_candidates(

@@ -32,8 +32,8 @@ from typing import Any
 import pytest
 from leaderboard_data import tree, valid_submission
 
-from dataset_gen.atomic import write_bytes_atomic
-from dataset_gen.parallel import ParallelError, remove_stale_temporaries, run_resumable
+from dataset_gen.pipeline.parallel import ParallelError, remove_stale_temporaries, run_resumable
+from dg16m_core.atomic import write_bytes_atomic
 
 REPO = Path(__file__).resolve().parents[1]
 LOOPBACK = "127.0.0.1"
@@ -64,7 +64,7 @@ def driver_env() -> dict[str, str]:
 def dg16m(args: list[str], *, timeout: float = RUN_TIMEOUT_S) -> subprocess.CompletedProcess[str]:
     """Run ``dg16m ARGS`` as a process of its own; raises on a non-zero exit."""
     result = subprocess.run(
-        [sys.executable, "-m", "dataset_gen.cli", *args],
+        [sys.executable, "-m", "dg16m_core.cli", *args],
         cwd=REPO,
         env=driver_env(),
         capture_output=True,
@@ -122,7 +122,7 @@ def run_and_kill(
     ``kill(driver)`` until it says it killed something; wait for the driver to exit."""
     start = time.perf_counter()
     with subprocess.Popen(
-        [sys.executable, "-m", "dataset_gen.cli", *args],
+        [sys.executable, "-m", "dg16m_core.cli", *args],
         cwd=REPO,
         env=driver_env(),
         stdout=subprocess.PIPE,
@@ -284,9 +284,9 @@ import os, sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from dataset_gen.atomic import atomic_path
-from dataset_gen.errors import Dg16mError
-from dataset_gen.parallel import run_resumable
+from dg16m_core.atomic import atomic_path
+from dg16m_core.errors import Dg16mError
+from dataset_gen.pipeline.parallel import run_resumable
 
 @dataclass(frozen=True)
 class Item:
@@ -469,7 +469,7 @@ def test_leaderboard_worker_survives_a_killed_worker_node(cluster: Any, tmp_path
     start = time.perf_counter()
     on_ray = ["--db", str(remote), "--backend", "ray", "--address", cluster.address]
     with subprocess.Popen(
-        [sys.executable, "-m", "dataset_gen.cli", *worker, *on_ray],
+        [sys.executable, "-m", "dg16m_core.cli", *worker, *on_ray],
         cwd=REPO,
         env=driver_env(),
         stdout=subprocess.PIPE,

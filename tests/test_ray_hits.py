@@ -1,4 +1,4 @@
-"""The compiled exact ray hits (``dataset_gen.ray_hits``) against trimesh's exact intersector, and
+"""The compiled exact ray hits (``dataset_gen.objects.ray_hits``) against trimesh's exact intersector, and
 the generator's files against the path of before issue 45 (trimesh's intersector for the jaw
 rays, one collision classification per pose through trimesh's collision manager; the reference
 functions of ``bench/generate_object.py``): the same hits, faces and distances, the same bytes."""
@@ -14,14 +14,14 @@ from script_loader import load_script
 from shipped_meshes import FAST, MESHES
 from trimesh.ray.ray_triangle import RayMeshIntersector
 
-import dataset_gen.clearance as clearance_module
-from dataset_gen.decomposition import object_parts
-from dataset_gen.generate import GenerationParameters, generate_object
-from dataset_gen.gripper import nearest_hits
+import dataset_gen.grasps.clearance as clearance_module
+from dataset_gen.grasps.gripper import nearest_hits
 from dataset_gen.io import write_dg16m
-from dataset_gen.objects import load_object
-from dataset_gen.procedural import make_procedural_object
-from dataset_gen.ray_hits import PAD, segment_candidates, segment_hits, triangle_grid
+from dataset_gen.objects.decomposition import object_parts
+from dataset_gen.objects.grasp_object import load_object
+from dataset_gen.objects.ray_hits import PAD, segment_candidates, segment_hits, triangle_grid
+from dataset_gen.pipeline.generate import GenerationParameters, generate_object
+from dataset_gen.sources.procedural import make_procedural_object
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 BENCH = load_script("bench/generate_object.py", "generate_object_bench")
@@ -54,7 +54,7 @@ def meshes() -> list[tuple[str, trimesh.Trimesh]]:
 
 
 #: Meshes with coincident or overlapping faces (several pieces), where trimesh's choice between
-#: two hits less than about 1e-8 m apart depends on its R-tree's order (see dataset_gen.ray_hits)
+#: two hits less than about 1e-8 m apart depends on its R-tree's order (see dataset_gen.objects.ray_hits)
 OVERLAPPING = {"couch"}
 
 

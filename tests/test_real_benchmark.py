@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from dataset_gen.budget import StageTimeoutError, run_with_budget
-from dataset_gen.cli import main as cli_main
-from dataset_gen.decomposition import DecompositionParameters, object_parts
-from dataset_gen.errors import MeshError
+from dataset_gen.objects.decomposition import DecompositionParameters, object_parts
+from dg16m_core.budget import StageTimeoutError, run_with_budget
+from dg16m_core.cli import main as cli_main
+from dg16m_core.errors import MeshError
 from dg16m_env.benchmark.build import BuildLimits, build_benchmark
 from dg16m_env.benchmark.file import read_benchmark, write_benchmark
 from dg16m_env.benchmark.model import SOURCES, BenchmarkError, BenchmarkParameters
@@ -281,7 +281,7 @@ def test_a_mesh_benchmark_carries_its_mesh_and_refuses_a_changed_one(
     obj = bench.objects[0]
     assert obj.has_mesh
     carried = obj.load()  # no mesh folder needed
-    from dataset_gen.objects import load_object
+    from dataset_gen.objects.grasp_object import load_object
 
     from_folder = load_object(meshes / "plank.obj")
     np.testing.assert_array_equal(carried.mesh.vertices, from_folder.mesh.vertices)
@@ -570,7 +570,7 @@ def test_a_stage_past_its_budget_is_recorded_with_its_stage(tmp_path: Path) -> N
 
 
 def test_the_grid_leaves_out_the_slivers_it_flattens() -> None:
-    from dataset_gen.objects import ConvexPart
+    from dataset_gen.objects.grasp_object import ConvexPart
     from dg16m_env.benchmark.build import grid_parts
 
     box = np.array([[x, y, z] for x in (0, 0.1) for y in (0, 0.1) for z in (0, 0.1)])

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-import dataset_gen.cli
-from dataset_gen.errors import Dg16mError
+import dg16m_core.cli
+from dg16m_core.errors import Dg16mError
 from dg16m_env.benchmark.build import build_benchmark
 from dg16m_env.benchmark.file import read_benchmark
 from dg16m_env.benchmark.model import Benchmark, BenchmarkParameters
@@ -217,7 +217,7 @@ def test_strip_and_gif_are_written(tmp_path: Path, monkeypatch: pytest.MonkeyPat
 @pytest.fixture
 def with_sim() -> None:
     """``dg16m sim`` comes from dg16m_env's entry point (the package must be installed)."""
-    values = [plugin.value for plugin in dataset_gen.cli.command_plugins()]
+    values = [plugin.value for plugin in dg16m_core.cli.command_plugins()]
     assert "dg16m_env.cli.sim:register" in values, values
 
 
@@ -262,7 +262,7 @@ def test_cli_replay_writes_a_strip(
     row = _ran_row(bench)
     out = tmp_path / "strip.png"
     argv = ["sim", "replay", str(bench_path), "--row", str(row), "--out", str(out)]
-    assert dataset_gen.cli.main([*argv, "--frames", "3", "--size", "96x72"]) == 0
+    assert dg16m_core.cli.main([*argv, "--frames", "3", "--size", "96x72"]) == 0
     printed = capsys.readouterr().out
     assert "stored nominal trial:" in printed
     assert "success probability:" in printed
@@ -273,11 +273,11 @@ def test_cli_replay_writes_a_strip(
         assert image.width >= 3 * 96
     # A perturbed trial, rebuilt from the stored seed, replays to its stored verdict.
     last = bench.labels.spec.trials - 1
-    assert dataset_gen.cli.main([*argv, "--trial", str(last), "--frames", "2"]) == 0
+    assert dg16m_core.cli.main([*argv, "--trial", str(last), "--frames", "2"]) == 0
     printed = capsys.readouterr().out
     assert f"stored perturbed trial {last}:" in printed
     assert "note:" not in printed
-    assert dataset_gen.cli.main([*argv, "--trial", str(last + 1)]) == 2
+    assert dg16m_core.cli.main([*argv, "--trial", str(last + 1)]) == 2
     assert (
         "--trial: expected a trial (0 nominal, 1..K perturbed) in [0, " in capsys.readouterr().err
     )
@@ -289,7 +289,7 @@ def test_cli_replay_defaults_to_the_shipped_benchmark(
 ) -> None:
     out = tmp_path / "row1.png"
     assert (
-        dataset_gen.cli.main(
+        dg16m_core.cli.main(
             ["sim", "replay", "--row", "1", "--out", str(out), "--frames", "2", "--size", "96x72"]
         )
         == 0
@@ -319,7 +319,7 @@ def test_cli_replay_bad_input_exits_2(
 ) -> None:
     message = message.replace("[0, 7)", f"[0, {bench.n})")
     argv = ["sim", "replay", str(bench_path), "--out", str(tmp_path / "x.png"), *extra]
-    assert dataset_gen.cli.main(argv) == 2
+    assert dg16m_core.cli.main(argv) == 2
     err = capsys.readouterr().err
     assert message in err
     assert err.count("\n") == 1
@@ -330,15 +330,15 @@ def test_cli_replay_rejects_other_suffixes(
     with_sim: None, bench_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     argv = ["sim", "replay", str(bench_path), "--row", "0", "--out", str(tmp_path / "x.jpg")]
-    assert dataset_gen.cli.main(argv) == 2
+    assert dg16m_core.cli.main(argv) == 2
     assert "expected a .png or .gif path" in capsys.readouterr().err
 
 
 @pytest.fixture(scope="module")
 def grasp_file(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
-    from dataset_gen.generate import GenerationParameters, generate_dataset
-    from dataset_gen.procedural import benchmark_specs
-    from dataset_gen.sources import procedural_sources
+    from dataset_gen.pipeline.generate import GenerationParameters, generate_dataset
+    from dataset_gen.sources.object_source import procedural_sources
+    from dataset_gen.sources.procedural import benchmark_specs
 
     out = tmp_path_factory.mktemp("dataset")
     sources = procedural_sources(benchmark_specs()[:1])
@@ -357,13 +357,13 @@ def test_cli_replay_a_grasp_file_pair(
     path, object_id = grasp_file
     out = tmp_path / "pair.gif"
     argv = ["sim", "replay", "--grasps", str(path), "--index", "0", "--procedural", object_id]
-    assert dataset_gen.cli.main([*argv, "--out", str(out), "--frames", "3", "--size", "64x48"]) == 0
+    assert dg16m_core.cli.main([*argv, "--out", str(out), "--frames", "3", "--size", "64x48"]) == 0
     assert "replayed:" in capsys.readouterr().out
     with Image.open(out) as image:
         assert image.format == "GIF"
         assert image.n_frames >= 3
     bad = ["sim", "replay", "--grasps", str(path), "--index", "99999", "--procedural", object_id]
-    assert dataset_gen.cli.main([*bad, "--out", str(out)]) == 2
+    assert dg16m_core.cli.main([*bad, "--out", str(out)]) == 2
     assert "expected a pair index in [0, " in capsys.readouterr().err
 
 
@@ -374,7 +374,7 @@ def test_cli_run_reports_passing_and_failing(
 
     path, object_id = grasp_file
     argv = ["sim", "run", str(path), "--procedural", object_id, "--limit", "3", "--json"]
-    assert dataset_gen.cli.main(argv) == 0
+    assert dg16m_core.cli.main(argv) == 0
     payload = json.loads(capsys.readouterr().out)
     assert payload["object"] == object_id
     assert payload["summary"]["trials"] == sum(
@@ -384,9 +384,9 @@ def test_cli_run_reports_passing_and_failing(
     assert payload["perturbation"]["n_perturbations"] == PerturbationSpec().n_perturbations
     assert len(payload["p_success"]) == payload["summary"]["trials"]
     assert all(g >= f for g, f in zip(payload["p_gravity"], payload["p_success"], strict=True))
-    assert dataset_gen.cli.main([*argv[:5], "--limit", "0"]) == 2
+    assert dg16m_core.cli.main([*argv[:5], "--limit", "0"]) == 2
     # --perturbations 0: the nominal trial alone, so every p is 0 or 1.
-    assert dataset_gen.cli.main([*argv, "--perturbations", "0"]) == 0
+    assert dg16m_core.cli.main([*argv, "--perturbations", "0"]) == 0
     alone = json.loads(capsys.readouterr().out)
     assert set(alone["p_success"]) <= {0.0, 1.0}
 
@@ -413,7 +413,7 @@ def test_cli_run_says_why_trials_are_invalid_and_what_to_do(
 ) -> None:
     path, object_id = penetrating_file
     argv = ["sim", "run", str(path), "--procedural", object_id, "--limit", "3"]
-    assert dataset_gen.cli.main(argv) == 0
+    assert dg16m_core.cli.main(argv) == 0
     out = capsys.readouterr().out
     match = re.search(r"invalid trials \((\d+) of (\d+); not run\), by reason:", out)
     assert match, out
@@ -429,7 +429,7 @@ def test_cli_run_says_why_trials_are_invalid_and_what_to_do(
     assert "{" not in out
     assert not re.search(r"\d\.\d{5,}", out), out
 
-    assert dataset_gen.cli.main([*argv, "--json"]) == 0
+    assert dg16m_core.cli.main([*argv, "--json"]) == 0
     payload = json.loads(capsys.readouterr().out)
     assert sum(payload["invalid_reasons"].values()) == payload["summary"]["invalid"] == invalid
     assert payload["invalid_reasons"]["hand0_penetrates"] >= 1
@@ -441,7 +441,7 @@ def test_cli_run_coacd_threshold_is_for_meshes_only(
 ) -> None:
     path, object_id = grasp_file
     argv = ["sim", "run", str(path), "--procedural", object_id, "--coacd-threshold", "0.02"]
-    assert dataset_gen.cli.main(argv) == 2
+    assert dg16m_core.cli.main(argv) == 2
     assert "--coacd-threshold: expected only with --mesh" in capsys.readouterr().err
 
 
@@ -459,7 +459,7 @@ def test_cli_run_on_the_release_airplane_explains_the_invalid_trials(
     palm, sits inside the object: the poses were made for the Robotiq 2F-85)."""
     argv = ["sim", "run", str(REAL / "dg16m_airplane.h5"), "--mesh"]
     argv += [str(REAL / "dg16m_airplane.obj"), "--limit", "50"]
-    assert dataset_gen.cli.main(argv) == 0
+    assert dg16m_core.cli.main(argv) == 0
     out = capsys.readouterr().out
     match = re.search(r"invalid trials \((\d+) of 100; not run\)", out)
     assert match, out

@@ -20,10 +20,10 @@ from baselines.classifier_data import (
     split_objects,
 )
 from baselines.reproduce import ReproduceError, checkpoint_paths, fig4, table2, table3
-from dataset_gen.generate import GenerationParameters, generate_dataset
 from dataset_gen.io import read_dg16m
-from dataset_gen.procedural import object_specs
-from dataset_gen.sources import procedural_sources
+from dataset_gen.pipeline.generate import GenerationParameters, generate_dataset
+from dataset_gen.sources.object_source import procedural_sources
+from dataset_gen.sources.procedural import object_specs
 
 
 @pytest.fixture(scope="module")

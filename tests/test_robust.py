@@ -7,17 +7,17 @@ import numpy as np
 import pytest
 
 from dataset_gen.force_closure import evaluate
-from dataset_gen.generate import GenerationError, GenerationParameters, generate_object
-from dataset_gen.objects import MassProperties
-from dataset_gen.parameters import PAPER, PROTOCOL
-from dataset_gen.procedural import make_procedural_object
-from dataset_gen.robust import (
+from dataset_gen.grasps.robust import (
     LOAD_NAMES,
     RobustError,
     disturbance_motion,
     protocol_loads,
     robust_pairs,
 )
+from dataset_gen.objects.grasp_object import MassProperties
+from dataset_gen.pipeline.generate import GenerationError, GenerationParameters, generate_object
+from dataset_gen.sources.procedural import make_procedural_object
+from dg16m_core.parameters import PAPER, PROTOCOL
 
 # A 0.8 x 0.04 x 0.04 m bar pinched from above and below by two hands 0.6 m apart: contacts on
 # its top and bottom faces (normals +-z), the hand line along x through the origin.

@@ -1,4 +1,4 @@
-"""Antipodal single-arm grasp sampling (dataset_gen.sampling)."""
+"""Antipodal single-arm grasp sampling (dataset_gen.grasps.sampling)."""
 
 from __future__ import annotations
 
@@ -10,16 +10,16 @@ import numpy as np
 import pytest
 import trimesh
 
-from dataset_gen.errors import Dg16mError, GripperError
-from dataset_gen.gripper import PANDA, ROBOTIQ_2F85, GripperModel, contacts_from_pose
-from dataset_gen.objects import GraspObject, is_rigid, load_object
-from dataset_gen.procedural import FAMILIES, make_procedural_object
-from dataset_gen.sampling import (
+from dataset_gen.grasps.gripper import PANDA, ROBOTIQ_2F85, GripperModel, contacts_from_pose
+from dataset_gen.grasps.sampling import (
     STAGES,
     SamplingError,
     SingleArmGrasps,
     sample_antipodal_grasps,
 )
+from dataset_gen.objects.grasp_object import GraspObject, is_rigid, load_object
+from dataset_gen.sources.procedural import FAMILIES, make_procedural_object
+from dg16m_core.errors import Dg16mError, GripperError
 
 MU = 0.4
 ARRAYS = ("poses", "contact_points", "contact_normals", "face_ids", "widths")
@@ -236,7 +236,7 @@ def test_bad_input(
 def test_defaults_are_the_papers() -> None:
     import inspect
 
-    from dataset_gen.parameters import PAPER
+    from dg16m_core.parameters import PAPER
 
     defaults = inspect.signature(sample_antipodal_grasps).parameters
     assert defaults["n_grasps"].default == PAPER.n_grasps == 500

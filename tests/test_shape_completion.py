@@ -23,8 +23,8 @@ from baselines.shape_completion import (
     procedural_library,
     yaw_matrix,
 )
-from dataset_gen.cli import main
-from dataset_gen.gripper import PANDA
+from dataset_gen.grasps.gripper import PANDA
+from dg16m_core.cli import main
 from dg16m_env.benchmark.file import read_benchmark, write_benchmark
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.evaluators import load_benchmark_ref

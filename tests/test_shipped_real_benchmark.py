@@ -16,8 +16,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import dg16m_env  # noqa: F401  (registers the environments)
-from dataset_gen.cli import main as cli_main
-from dataset_gen.hashing import file_sha256
+from dg16m_core.cli import main as cli_main
+from dg16m_core.hashing import file_sha256
 from dg16m_env.benchmark.file import read_benchmark
 from dg16m_env.benchmark.model import SOURCES, Benchmark
 from dg16m_env.benchmark.names import REAL_BENCHMARK, benchmark_file

@@ -29,9 +29,9 @@ from planks import (
     plank,
 )
 
-from dataset_gen.errors import Dg16mError
-from dataset_gen.gripper import PANDA
-from dataset_gen.objects import make_object
+from dataset_gen.grasps.gripper import PANDA
+from dataset_gen.objects.grasp_object import make_object
+from dg16m_core.errors import Dg16mError
 from dg16m_env.physics.scene import Scene, SceneError, SceneParameters, compile_scene
 from dg16m_env.physics.trial import run_trials
 from dg16m_env.physics.trial_measures import analyse, grasp_centres
@@ -648,9 +648,9 @@ def test_scene_keeps_its_inputs(short_scene: Scene) -> None:
 
 
 def test_procedural_benchmark_object_runs_without_instability() -> None:
-    from dataset_gen.pairing import candidate_pairs, dual_poses
-    from dataset_gen.procedural import benchmark_specs, make_procedural_object
-    from dataset_gen.sampling import sample_antipodal_grasps
+    from dataset_gen.grasps.pairing import candidate_pairs, dual_poses
+    from dataset_gen.grasps.sampling import sample_antipodal_grasps
+    from dataset_gen.sources.procedural import benchmark_specs, make_procedural_object
 
     family, seed = benchmark_specs()[0]
     obj = make_procedural_object(family, seed)

@@ -19,8 +19,8 @@ import h5py
 import numpy as np
 import pytest
 
-from dataset_gen.hashing import file_sha256
 from dataset_gen.io import DualGraspSet, read_dg16m, write_dg16m
+from dg16m_core.hashing import file_sha256
 from dg16m_env.benchmark.sources import retarget_poses
 from dg16m_env.subjects.submission import (
     EMBEDDED,

@@ -12,9 +12,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from dataset_gen.cli import main as cli_main
-from dataset_gen.errors import MeshError
-from dataset_gen.repair import (
+from dataset_gen.real.repair import (
     MAX_SIZE_LOSS,
     RepairParameters,
     is_one_volume,
@@ -22,7 +20,7 @@ from dataset_gen.repair import (
     size_loss,
     surface_deviation,
 )
-from dataset_gen.sweethome3d import (
+from dataset_gen.real.sweethome3d import (
     DEFAULT_ROOT,
     SIZE_RANGE_M,
     CatalogEntry,
@@ -38,6 +36,8 @@ from dataset_gen.sweethome3d import (
     select_entries,
     target_longest_side,
 )
+from dg16m_core.cli import main as cli_main
+from dg16m_core.errors import MeshError
 
 pytest.importorskip("skimage")
 pytest.importorskip("fast_simplification")

@@ -18,7 +18,7 @@ import trimesh
 
 pytest.importorskip("mujoco")
 
-from dataset_gen.cli import main as cli_main
+from dg16m_core.cli import main as cli_main
 from dg16m_env.benchmark.file import read_benchmark
 
 TUTORIAL = Path(__file__).resolve().parents[1] / "docs" / "tutorials" / "own_meshes.md"

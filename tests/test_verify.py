@@ -16,10 +16,10 @@ import pytest
 import trimesh
 
 from dataset_gen import io
-from dataset_gen.cli import main
-from dataset_gen.errors import Dg16mError, MeshError
 from dataset_gen.force_closure import evaluate
-from dataset_gen.verify import verify_file
+from dataset_gen.pipeline.verify import verify_file
+from dg16m_core.cli import main
+from dg16m_core.errors import Dg16mError, MeshError
 
 HALF = np.array([0.2, 0.15, 0.1])  # box half extents (m)
 N_PAIRS = 40

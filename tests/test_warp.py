@@ -26,7 +26,7 @@ from planks import (
     plank,
 )
 
-from dataset_gen.cli import main
+from dg16m_core.cli import main
 from dg16m_env.physics import simulator as simulator_module
 from dg16m_env.physics.scene import Scene, compile_scene
 from dg16m_env.physics.simulator import (

@@ -2,7 +2,10 @@
 
 ``evaluate(contact_points, contact_normals, ...)`` is the entry point; see
 :mod:`dataset_gen.force_closure.core` for the conventions and a worked example. Its defaults are
-the paper's parameters, :data:`dataset_gen.parameters.PAPER`.
+the paper's parameters, :data:`dg16m_core.parameters.PAPER`.
+
+Floor 1 of :mod:`dataset_gen`. May import: :mod:`dg16m_core` and this folder (numpy, SciPy,
+numba, Clarabel).
 """
 
 from .core import (

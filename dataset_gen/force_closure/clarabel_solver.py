@@ -17,7 +17,7 @@ reported. The problem is always feasible (F = 0 is) and bounded, so any other st
 numerical failure, never a verdict: the pair is solved again with the next settings of
 :data:`RETRY_SETTINGS` (stronger static regularisation, then no equilibration; measured: about 1 in
 10,000 real pairs ends in ``NumericalError`` at the optimum with the defaults), and when every
-attempt fails :class:`~dataset_gen.errors.SolverError` is raised. A tight re-solve
+attempt fails :class:`~dg16m_core.errors.SolverError` is raised. A tight re-solve
 (``tight=True``) only sharpens a solve that succeeded, so its failures are kept as attained
 bounds instead.
 
@@ -40,7 +40,8 @@ import clarabel
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import SolverError
+from dg16m_core.errors import SolverError
+
 from .geometry import FloatArray, apply_grasp, contact_frames, project_cone_ball
 
 _N_VAR = 13  # t and four 3-vectors

@@ -58,9 +58,10 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from ..checks import check_integer, check_number
-from ..errors import ForceClosureError
-from ..parameters import PAPER
+from dg16m_core.checks import check_integer, check_number
+from dg16m_core.errors import ForceClosureError
+from dg16m_core.parameters import PAPER
+
 from .geometry import SAFE_CONDITION, FloatArray, full_rank, grasp_quality
 
 log = logging.getLogger(__name__)

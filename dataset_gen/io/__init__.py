@@ -1,8 +1,8 @@
 """File formats: DG16M release grasp files, ACRONYM grasp files, dataset manifests.
 
-Every reader validates what it reads and raises :class:`~dataset_gen.errors.GraspFileError` naming
+Every reader validates what it reads and raises :class:`~dg16m_core.errors.GraspFileError` naming
 the file, the key, what was expected and what was found. Every writer goes through
-:func:`dataset_gen.atomic.atomic_path`, so a destination is either its old version or complete.
+:func:`dg16m_core.atomic.atomic_path`, so a destination is either its old version or complete.
 Nothing is ever unpickled: HDF5 datasets are checked for a numeric dtype before their data is
 read, and the only string data read from HDF5 is ``object/file`` (and ACRONYM's ``gripper/type``).
 
@@ -22,6 +22,9 @@ module                             contents
 ``dataset_gen.io._checks``         validation shared by the formats
 ``dataset_gen.io._hdf5``           safe HDF5 reading, deterministic ``write_array``
 =================================  ===========================================================
+
+Floor 1 of :mod:`dataset_gen`. May import: :mod:`dg16m_core`, :mod:`dataset_gen.objects` and
+this folder.
 """
 
 from __future__ import annotations

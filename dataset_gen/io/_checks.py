@@ -1,6 +1,6 @@
 """Validation shared by the grasp file formats (messages name the HDF5 key; readers add the file).
 
-Every check raises :class:`~dataset_gen.errors.GraspFileError` saying what was expected and what
+Every check raises :class:`~dg16m_core.errors.GraspFileError` saying what was expected and what
 was found. Nothing here reads a file: see :mod:`dataset_gen.io._hdf5` for that.
 """
 
@@ -13,8 +13,8 @@ from typing import Any
 import h5py
 import numpy as np
 
-from dataset_gen.errors import GraspFileError
-from dataset_gen.objects import is_rigid
+from dataset_gen.objects.grasp_object import is_rigid
+from dg16m_core.errors import GraspFileError
 
 PathLike = str | os.PathLike[str]
 

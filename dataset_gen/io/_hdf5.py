@@ -15,7 +15,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from dataset_gen.errors import GraspFileError
+from dg16m_core.errors import GraspFileError
 
 from ._checks import _check_kind, _describe_dtype
 

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.errors import GraspFileError
+from dg16m_core.errors import GraspFileError
 
 from ._checks import (
     PathLike,

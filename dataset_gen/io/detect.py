@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from dataset_gen.errors import GraspFileError
+from dg16m_core.errors import GraspFileError
 
 from ._checks import PathLike
 from ._hdf5 import open_hdf5

@@ -54,8 +54,8 @@ from typing import Any
 import h5py
 import numpy as np
 
-from dataset_gen.atomic import atomic_path
-from dataset_gen.errors import GraspFileError
+from dg16m_core.atomic import atomic_path
+from dg16m_core.errors import GraspFileError
 
 from ._checks import (
     _NUMERIC_KINDS,

@@ -36,8 +36,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from dataset_gen.atomic import write_json_atomic
-from dataset_gen.errors import GraspFileError
+from dg16m_core.atomic import write_json_atomic
+from dg16m_core.errors import GraspFileError
 
 from ._checks import PathLike, _ConstantError, _reject_constant
 from .versions import MANIFEST_SCHEMA_VERSION, SUPPORTED_MANIFEST_VERSIONS, package_version

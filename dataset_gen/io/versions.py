@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataset_gen.distribution import package_version
+from dg16m_core.distribution import package_version
 
 __all__ = [
     "MANIFEST_SCHEMA_VERSION",

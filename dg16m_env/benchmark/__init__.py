@@ -31,7 +31,7 @@ Building (``dg16m benchmark build``)
 For each object of the procedural ``benchmark`` split (300 objects, 10 families x 30), of a
 folder of the user's meshes (``--meshes DIR``: each mesh file is an object, in metres unless
 ``--scale``; real meshes are simulated through their CoACD convex parts,
-:func:`dataset_gen.decomposition.object_parts`), or of the user's meshes with DG16M grasp files
+:func:`dataset_gen.objects.decomposition.object_parts`), or of the user's meshes with DG16M grasp files
 (``--grasps``: a folder of ``<id>.h5`` or a folder written by ``dg16m generate``, which holds
 ``grasps/<id>.h5`` and, for procedural objects, ``meshes/``):
 

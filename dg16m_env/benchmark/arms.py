@@ -11,18 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.clearance import collision_parts
 from dataset_gen.force_closure import evaluate
-from dataset_gen.hashing import mesh_sha256
-from dataset_gen.io import (
-    DualGraspSet,
-)
-from dataset_gen.objects import (
-    ConvexPart,
-    GraspObject,
-    read_mesh_arrays,
-)
-from dataset_gen.pairing import (
+from dataset_gen.grasps.clearance import collision_parts
+from dataset_gen.grasps.pairing import (
     candidate_pairs,
     dual_contacts,
     dual_poses,
@@ -31,12 +22,21 @@ from dataset_gen.pairing import (
     score_pairs,
     select_pairs,
 )
-from dataset_gen.robust import robust_pairs
-from dataset_gen.sampling import sample_antipodal_grasps
-from dataset_gen.sources import (
+from dataset_gen.grasps.robust import robust_pairs
+from dataset_gen.grasps.sampling import sample_antipodal_grasps
+from dataset_gen.io import (
+    DualGraspSet,
+)
+from dataset_gen.objects.grasp_object import (
+    ConvexPart,
+    GraspObject,
+    read_mesh_arrays,
+)
+from dataset_gen.sources.object_source import (
     ObjectSource,
     object_seed,
 )
+from dg16m_core.hashing import mesh_sha256
 from dg16m_env.benchmark.model import SOURCES, BenchmarkError, BenchmarkObject, BenchmarkParameters
 from dg16m_env.benchmark.sources import BenchmarkSource, file_poses
 
@@ -86,7 +86,7 @@ def sampled_pairs(
     Draws from ``rng`` in a fixed order: grasps, the passing block, the failing pool's order,
     the random candidates, the farthest pairs, then the robust pairs. ``parts``: the object's
     convex parts when the caller already has them (the open-hand clearance rule is checked
-    against them; default: :func:`dataset_gen.clearance.collision_parts`).
+    against them; default: :func:`dataset_gen.grasps.clearance.collision_parts`).
     """
     grasps = sample_antipodal_grasps(
         obj,

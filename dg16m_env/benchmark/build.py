@@ -17,27 +17,27 @@ from typing import Any
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from dataset_gen.budget import WALL_FACTOR, StageTimeoutError, run_with_budget
-from dataset_gen.checks import check_integer, check_number
-from dataset_gen.decomposition import (
-    MIN_RELATIVE_HULL_VOLUME,
-    decomposition_report,
-    object_parts,
-)
-from dataset_gen.errors import Dg16mError
-from dataset_gen.gripper import PANDA
+from dataset_gen.grasps.gripper import PANDA
 from dataset_gen.io import (
     failed_entries,
     package_version,
     read_dg16m,
 )
-from dataset_gen.objects import (
+from dataset_gen.objects.decomposition import (
+    MIN_RELATIVE_HULL_VOLUME,
+    decomposition_report,
+    object_parts,
+)
+from dataset_gen.objects.grasp_object import (
     ConvexPart,
 )
-from dataset_gen.parallel import Backend, run_resumable
-from dataset_gen.sources import (
+from dataset_gen.pipeline.parallel import Backend, run_resumable
+from dataset_gen.sources.object_source import (
     object_seed,
 )
+from dg16m_core.budget import WALL_FACTOR, StageTimeoutError, run_with_budget
+from dg16m_core.checks import check_integer, check_number
+from dg16m_core.errors import Dg16mError
 from dg16m_env.benchmark.arms import (
     ObjectRejectedError,
     _file_pairs,
@@ -69,7 +69,7 @@ from dg16m_env.physics.trial_protocol import PHASES, TrialStatus
 def _grid_hull(part: ConvexPart, grid: float, min_volume: float) -> ConvexPart | None:
     """``part`` with its vertices on the grid, or None when that flattens it (a sliver thinner
     than the grid) to no volume above ``min_volume`` (m^3), as CoACD's own output is filtered
-    (:data:`dataset_gen.decomposition.MIN_RELATIVE_HULL_VOLUME`)."""
+    (:data:`dataset_gen.objects.decomposition.MIN_RELATIVE_HULL_VOLUME`)."""
     if part.kind != "mesh" or part.vertices is None:
         return part
     rounded = on_grid(grid_multiples(part.vertices, grid), grid)
@@ -125,7 +125,7 @@ def benchmark_object(
             after sampling, before any trial; :class:`ObjectRejectedError` says which.
         on_stage: called with ``"load"``, ``"screen"`` (only with ``min_passing``),
             ``"decompose"``, ``"sample"`` and ``"label"`` as the work enters each (for time
-            budgets, :func:`dataset_gen.budget.run_with_budget`).
+            budgets, :func:`dg16m_core.budget.run_with_budget`).
     """
     stage = on_stage or _no_stage
     stage("load")
@@ -253,19 +253,19 @@ class BuildLimits:
         object_wall_s: wall seconds for the whole object, all stages together (None = no such
             bound): what a loaded machine cannot stretch.
 
-    Budgets are the child process's CPU seconds (:func:`dataset_gen.budget.run_with_budget`),
+    Budgets are the child process's CPU seconds (:func:`dg16m_core.budget.run_with_budget`),
     not wall time, so that a loaded machine does not reject what a quiet one admits (and
-    :data:`~dataset_gen.budget.WALL_FACTOR` times the budget in wall time stops a stage that
+    :data:`~dg16m_core.budget.WALL_FACTOR` times the budget in wall time stops a stage that
     waits).
 
     An object past a budget is stopped (its child process is killed) and recorded as failed
     with ``rejected: "time budget"`` and the stage; one with too few pairs with ``rejected:
     "too few passing pairs"``; each with a ``verdict`` in words. With any budget, and for every
-    mesh object, the object runs in a child process (:func:`dataset_gen.budget.run_with_budget`;
+    mesh object, the object runs in a child process (:func:`dg16m_core.budget.run_with_budget`;
     about 2 s to start) that Ctrl-C and SIGTERM stop at once.
 
     The bound on one object's wall time: ``object_wall_s`` where set, else the sum over its
-    stages of :data:`~dataset_gen.budget.WALL_FACTOR` times each budget (``screen`` takes
+    stages of :data:`~dg16m_core.budget.WALL_FACTOR` times each budget (``screen`` takes
     ``sample_s``).
     """
 

@@ -19,7 +19,7 @@ their reasons (``invalid_reasons``: ``hand0_penetrates``, ``hand1_penetrates``,
 ``objects/`` (O rows): ``ids`` (str), ``families`` (str, "" for meshes), ``seeds`` (int64, -1 for
 meshes), ``files`` (str: mesh file, relative to the build's mesh folder, "" for procedural),
 ``scales`` (float64), ``masses`` (float64, kg), ``parts`` (str: JSON list of
-:meth:`~dataset_gen.objects.ConvexPart.to_dict`, object frame, m); optional (absent in files
+:meth:`~dataset_gen.objects.grasp_object.ConvexPart.to_dict`, object frame, m); optional (absent in files
 written before them): ``centers_of_mass`` ((O, 3) float64, m, object frame: where the trial
 applies the weight; absent = not known, ``None``), ``reseat_max`` ((O,) float64, m: the
 re-seating limit the object was built with, 0 = off; absent = 0).
@@ -31,7 +31,7 @@ files, ``mesh_counts`` ((O, 2) int64: vertices and faces per object, 0 for proce
 an OBJ file's fixed-point text does: read as ``multiples / 10**decimals`` in float64, with
 ``mesh_negative_zeros`` (int64 flat indices, present when any) set to -0.0),
 ``mesh_faces`` ((sum F, 3) int32, indices into the object's own vertices) and ``mesh_sha256`` ((O,) str,
-:func:`dataset_gen.hashing.mesh_sha256` of the arrays; "" for procedural ones; a stored mesh
+:func:`dg16m_core.hashing.mesh_sha256` of the arrays; "" for procedural ones; a stored mesh
 that does not hash to it is refused on reading; the carried mesh is the object, so no mesh folder
 is read for it); and their convex hulls as arrays instead of JSON (``parts`` is then ``"[]"``):
 ``hull_objects`` ((O,) int32 hulls per object), ``hull_counts`` ((H,) int32 vertices per hull)
@@ -72,22 +72,24 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
 
-from dataset_gen.atomic import atomic_path
-from dataset_gen.errors import Dg16mError
-from dataset_gen.hashing import mesh_sha256
 from dataset_gen.io import (
     hdf5_content_problem,
     write_array,
 )
-from dataset_gen.objects import (
+from dataset_gen.objects.grasp_object import (
     ConvexPart,
     part_from_dict,
 )
+from dg16m_core.atomic import atomic_path
+from dg16m_core.errors import Dg16mError
+from dg16m_core.hashing import mesh_sha256
 from dg16m_env.benchmark.file_lazy import (
     MAX_DECIMALS,
     LazyBenchmarkObject,
@@ -370,89 +372,20 @@ def read_benchmark(path: str | os.PathLike[str], *, lazy: bool = False) -> Bench
             indices out of range, non-finite poses.
     """
     path = Path(path)
-    if not path.is_file():  # then the words the other commands use (hdf5_content_problem)
-        found = "a directory" if path.is_dir() else "nothing at this path"
-        raise BenchmarkError(f"{path}: expected a dg16m benchmark HDF5 file, found {found}")
-    try:
-        problem = hdf5_content_problem(path)
-    except OSError as exc:
-        problem = f"an unreadable file ({exc.strerror or exc})"
-    if problem is not None:
-        raise BenchmarkError(f"{path}: expected an HDF5 file, found {problem}")
-    try:
-        f = h5py.File(path, "r")
-    except (OSError, FileNotFoundError) as exc:
-        raise BenchmarkError(
-            f"{path}: expected a dg16m benchmark HDF5 file, found: {exc}"
-        ) from None
-    with f:
-        fmt = f.attrs.get("format")
-        fmt = fmt.decode() if isinstance(fmt, bytes) else fmt
-        if fmt != FORMAT:
-            raise BenchmarkError(f"{path}: expected format {FORMAT!r}, found {fmt!r}")
-        version = int(f.attrs.get("schema_version", -1))
-        if version == 1:
-            raise BenchmarkError(
-                f"{path}: expected schema_version {SCHEMA_VERSION}, found 1: a version 1 "
-                "benchmark labels each pair with one trial at the exact pose (written before "
-                "benchmark protocol v2); "
-                "version 2 labels are success probabilities over perturbed trials. Rebuild it "
-                "with `dg16m benchmark build` (the shipped benchmark is version 2)"
-            )
-        if version != SCHEMA_VERSION:
-            raise BenchmarkError(
-                f"{path}: expected schema_version {SCHEMA_VERSION}, found {version}"
-            )
-        try:
-            metadata = json.loads(f.attrs["metadata"])
-        except (KeyError, ValueError) as exc:
-            raise BenchmarkError(f"{path}: expected JSON metadata, found: {exc}") from None
-        ids = [s.decode() for s in read_checked(f, path, "objects/ids", (None,), "OS")]
-        o = len(ids)
-        families = [s.decode() for s in read_checked(f, path, "objects/families", (o,), "OS")]
-        files = [s.decode() for s in read_checked(f, path, "objects/files", (o,), "OS")]
-        parts_json = [s.decode() for s in read_checked(f, path, "objects/parts", (o,), "OS")]
-        seeds = read_checked(f, path, "objects/seeds", (o,), "i")
-        scales = read_checked(f, path, "objects/scales", (o,), "f")
-        masses = read_checked(f, path, "objects/masses", (o,), "f")
-        reseat_max = (
-            read_checked(f, path, "objects/reseat_max", (o,), "f")
-            if "objects/reseat_max" in f
-            else np.zeros(o)
-        )
-        centers = (
-            read_checked(f, path, "objects/centers_of_mass", (o, 3), "f")
-            if "objects/centers_of_mass" in f
-            else None
-        )
+    with _open_benchmark(path) as f:
+        metadata = _read_header(f, path)
+        columns = _read_object_columns(f, path)
+        o = len(columns.ids)
         if lazy:
-            reader: LazyReader | None = LazyReader(f, path, parts_json)
+            reader: LazyReader | None = LazyReader(f, path, columns.parts_json)
             meshes: list[tuple[np.ndarray, np.ndarray, str] | None] = [None] * o
             hulls: list[list[ConvexPart]] = [[] for _ in range(o)]
         else:
             reader = None
             meshes = _read_meshes(f, path, o)
             hulls = _read_hulls(f, path, o)
-        index = read_checked(f, path, "grasps/object_index", (None,), "i")
+        index, arrays = _read_grasp_arrays(f, path)
         n = index.size
-        arrays = {
-            "poses": read_checked(f, path, "grasps/poses", (n, 2, 4, 4), "f"),
-            "contact_points": read_checked(f, path, "grasps/contact_points", (n, 4, 3), "f"),
-            "contact_normals": read_checked(f, path, "grasps/contact_normals", (n, 4, 3), "f"),
-            "source": read_checked(f, path, "grasps/source", (n,), "i"),
-            "fc_passed": read_checked(f, path, "grasps/fc_passed", (n,), "b"),
-            "fc_loss": read_checked(f, path, "grasps/fc_loss", (n,), "f"),
-            "reseat_shift": (
-                read_checked(f, path, "grasps/reseat_shift", (n, 2), "f")
-                if "grasps/reseat_shift" in f
-                else np.zeros((n, 2))
-            ),
-            "hand_line_distance": (
-                read_checked(f, path, "grasps/hand_line_distance", (n,), "f")
-                if "grasps/hand_line_distance" in f
-                else None
-            ),
-        }
         sim = {}
         for name in TrialResults.ARRAY_FIELDS:
             shape: tuple[int | None, ...] = (n, 2) if name.startswith("contacts") else (n,)
@@ -473,6 +406,145 @@ def read_benchmark(path: str | os.PathLike[str], *, lazy: bool = False) -> Bench
             "p_gravity": read_checked(f, path, "labels/p_gravity", (n,), "f"),
         }
         stored_label = read_checked(f, path, "labels/label", (n,), "b")
+    _check_values(path, columns, index, arrays, label_arrays)
+    objects = _benchmark_objects(path, columns, reader, meshes, hulls)
+    try:
+        labels = GraspLabels(
+            nominal=TrialResults(**sim, protocol=parameters.protocol),
+            spec=parameters.perturbation,
+            status=label_arrays["status"].astype(np.int8),
+            failing_phase=label_arrays["failing_phase"].astype(np.int8),
+            seeds=label_arrays["seeds"].astype(np.int64),
+        )
+    except LabelError as exc:
+        raise BenchmarkError(f"{path}: labels: {exc}") from None
+    _check_stored_labels(path, labels, stored_p, stored_label)
+    return Benchmark(
+        objects=objects,
+        object_index=index.astype(np.int32),
+        labels=labels,
+        metadata=metadata,
+        **arrays,
+    )
+
+
+def _open_benchmark(path: Path) -> h5py.File:
+    """``path`` opened for reading, once it is known to be an HDF5 file."""
+    if not path.is_file():  # then the words the other commands use (hdf5_content_problem)
+        found = "a directory" if path.is_dir() else "nothing at this path"
+        raise BenchmarkError(f"{path}: expected a dg16m benchmark HDF5 file, found {found}")
+    try:
+        problem = hdf5_content_problem(path)
+    except OSError as exc:
+        problem = f"an unreadable file ({exc.strerror or exc})"
+    if problem is not None:
+        raise BenchmarkError(f"{path}: expected an HDF5 file, found {problem}")
+    try:
+        return h5py.File(path, "r")
+    except (OSError, FileNotFoundError) as exc:
+        raise BenchmarkError(
+            f"{path}: expected a dg16m benchmark HDF5 file, found: {exc}"
+        ) from None
+
+
+def _read_header(f: h5py.File, path: Path) -> dict[str, Any]:
+    """The root attributes checked (format, schema version): the metadata."""
+    fmt = f.attrs.get("format")
+    fmt = fmt.decode() if isinstance(fmt, bytes) else fmt
+    if fmt != FORMAT:
+        raise BenchmarkError(f"{path}: expected format {FORMAT!r}, found {fmt!r}")
+    version = int(f.attrs.get("schema_version", -1))
+    if version == 1:
+        raise BenchmarkError(
+            f"{path}: expected schema_version {SCHEMA_VERSION}, found 1: a version 1 "
+            "benchmark labels each pair with one trial at the exact pose (written before "
+            "benchmark protocol v2); "
+            "version 2 labels are success probabilities over perturbed trials. Rebuild it "
+            "with `dg16m benchmark build` (the shipped benchmark is version 2)"
+        )
+    if version != SCHEMA_VERSION:
+        raise BenchmarkError(f"{path}: expected schema_version {SCHEMA_VERSION}, found {version}")
+    try:
+        return json.loads(f.attrs["metadata"])
+    except (KeyError, ValueError) as exc:
+        raise BenchmarkError(f"{path}: expected JSON metadata, found: {exc}") from None
+
+
+@dataclass(frozen=True)
+class _ObjectColumns:
+    """The per-object datasets of ``objects/`` (O rows), as read."""
+
+    ids: list[str]
+    families: list[str]
+    files: list[str]
+    parts_json: list[str]
+    seeds: np.ndarray
+    scales: np.ndarray
+    masses: np.ndarray
+    reseat_max: np.ndarray
+    centers: np.ndarray | None
+
+
+def _read_object_columns(f: h5py.File, path: Path) -> _ObjectColumns:
+    ids = [s.decode() for s in read_checked(f, path, "objects/ids", (None,), "OS")]
+    o = len(ids)
+    return _ObjectColumns(
+        ids=ids,
+        families=[s.decode() for s in read_checked(f, path, "objects/families", (o,), "OS")],
+        files=[s.decode() for s in read_checked(f, path, "objects/files", (o,), "OS")],
+        parts_json=[s.decode() for s in read_checked(f, path, "objects/parts", (o,), "OS")],
+        seeds=read_checked(f, path, "objects/seeds", (o,), "i"),
+        scales=read_checked(f, path, "objects/scales", (o,), "f"),
+        masses=read_checked(f, path, "objects/masses", (o,), "f"),
+        reseat_max=(
+            read_checked(f, path, "objects/reseat_max", (o,), "f")
+            if "objects/reseat_max" in f
+            else np.zeros(o)
+        ),
+        centers=(
+            read_checked(f, path, "objects/centers_of_mass", (o, 3), "f")
+            if "objects/centers_of_mass" in f
+            else None
+        ),
+    )
+
+
+def _read_grasp_arrays(f: h5py.File, path: Path) -> tuple[np.ndarray, dict[str, Any]]:
+    """``grasps/object_index`` and the other ``grasps/`` datasets (by :class:`Benchmark`
+    field)."""
+    index = read_checked(f, path, "grasps/object_index", (None,), "i")
+    n = index.size
+    arrays = {
+        "poses": read_checked(f, path, "grasps/poses", (n, 2, 4, 4), "f"),
+        "contact_points": read_checked(f, path, "grasps/contact_points", (n, 4, 3), "f"),
+        "contact_normals": read_checked(f, path, "grasps/contact_normals", (n, 4, 3), "f"),
+        "source": read_checked(f, path, "grasps/source", (n,), "i"),
+        "fc_passed": read_checked(f, path, "grasps/fc_passed", (n,), "b"),
+        "fc_loss": read_checked(f, path, "grasps/fc_loss", (n,), "f"),
+        "reseat_shift": (
+            read_checked(f, path, "grasps/reseat_shift", (n, 2), "f")
+            if "grasps/reseat_shift" in f
+            else np.zeros((n, 2))
+        ),
+        "hand_line_distance": (
+            read_checked(f, path, "grasps/hand_line_distance", (n,), "f")
+            if "grasps/hand_line_distance" in f
+            else None
+        ),
+    }
+    return index, arrays
+
+
+def _check_values(
+    path: Path,
+    columns: _ObjectColumns,
+    index: np.ndarray,
+    arrays: dict[str, Any],
+    label_arrays: dict[str, np.ndarray],
+) -> None:
+    """The values' ranges: trial codes and phases, object rows, finite poses, the optional
+    distances, pair sources."""
+    n, o = index.size, len(columns.ids)
     codes = label_arrays["status"]
     if n and not np.isin(codes, [s.value for s in TrialStatus]).all():
         raise BenchmarkError(
@@ -495,8 +567,8 @@ def read_benchmark(path: str | os.PathLike[str], *, lazy: bool = False) -> Bench
     optional = {
         "grasps/reseat_shift": arrays["reseat_shift"],
         "grasps/hand_line_distance": arrays["hand_line_distance"],
-        "objects/reseat_max": reseat_max,
-        "objects/centers_of_mass": centers,
+        "objects/reseat_max": columns.reseat_max,
+        "objects/centers_of_mass": columns.centers,
     }
     for key, values in optional.items():
         if values is None or not values.size:
@@ -509,59 +581,73 @@ def read_benchmark(path: str | os.PathLike[str], *, lazy: bool = False) -> Bench
             )
     if n and (arrays["source"].min() < 0 or arrays["source"].max() >= len(SOURCES)):
         raise BenchmarkError(f"{path}: grasps/source: expected values in [0, {len(SOURCES)})")
+
+
+def _benchmark_objects(
+    path: Path,
+    columns: _ObjectColumns,
+    reader: LazyReader | None,
+    meshes: list[tuple[np.ndarray, np.ndarray, str] | None],
+    hulls: list[list[ConvexPart]],
+) -> list[BenchmarkObject]:
+    """The objects of the columns: lazy ones (read on use through ``reader``) or with their
+    parts, hulls and carried meshes."""
+    c = columns
     objects: list[BenchmarkObject] = []
-    for i in range(o):
+    for i in range(len(c.ids)):
+        center = None if c.centers is None else c.centers[i].astype(np.float64)
         if reader is not None:
             objects.append(
                 LazyBenchmarkObject(
                     reader,
                     i,
-                    object_id=ids[i],
-                    family=families[i],
-                    seed=int(seeds[i]),
-                    file=files[i],
-                    scale=float(scales[i]),
-                    mass=float(masses[i]),
-                    center_of_mass=None if centers is None else centers[i].astype(np.float64),
-                    reseat_max=float(reseat_max[i]),
+                    object_id=c.ids[i],
+                    family=c.families[i],
+                    seed=int(c.seeds[i]),
+                    file=c.files[i],
+                    scale=float(c.scales[i]),
+                    mass=float(c.masses[i]),
+                    center_of_mass=center,
+                    reseat_max=float(c.reseat_max[i]),
                 )
             )
             continue
         try:
-            parts = tuple(part_from_dict(p) for p in json.loads(parts_json[i]))
+            parts = tuple(part_from_dict(p) for p in json.loads(c.parts_json[i]))
         except (ValueError, TypeError, Dg16mError) as exc:
-            raise BenchmarkError(f"{path}: objects/parts[{i}] ({ids[i]}): {exc}") from None
+            raise BenchmarkError(f"{path}: objects/parts[{i}] ({c.ids[i]}): {exc}") from None
         parts = (*parts, *hulls[i])
+        mesh = meshes[i]
         objects.append(
             BenchmarkObject(
-                ids[i],
-                families[i],
-                int(seeds[i]),
-                files[i],
-                float(scales[i]),
-                float(masses[i]),
+                c.ids[i],
+                c.families[i],
+                int(c.seeds[i]),
+                c.files[i],
+                float(c.scales[i]),
+                float(c.masses[i]),
                 parts,
-                center_of_mass=None if centers is None else centers[i].astype(np.float64),
-                reseat_max=float(reseat_max[i]),
+                center_of_mass=center,
+                reseat_max=float(c.reseat_max[i]),
                 **(
                     {}
-                    if meshes[i] is None
+                    if mesh is None
                     else dict(
-                        zip(("mesh_vertices", "mesh_faces", "mesh_sha256"), meshes[i], strict=True)
+                        zip(("mesh_vertices", "mesh_faces", "mesh_sha256"), mesh, strict=True)
                     )
                 ),
             )
         )
-    try:
-        labels = GraspLabels(
-            nominal=TrialResults(**sim, protocol=parameters.protocol),
-            spec=parameters.perturbation,
-            status=label_arrays["status"].astype(np.int8),
-            failing_phase=label_arrays["failing_phase"].astype(np.int8),
-            seeds=label_arrays["seeds"].astype(np.int64),
-        )
-    except LabelError as exc:
-        raise BenchmarkError(f"{path}: labels: {exc}") from None
+    return objects
+
+
+def _check_stored_labels(
+    path: Path,
+    labels: GraspLabels,
+    stored_p: dict[str, np.ndarray],
+    stored_label: np.ndarray,
+) -> None:
+    """The stored success probabilities and labels are those the trials give."""
     for name, stored in stored_p.items():
         derived = getattr(labels, name)
         if not np.array_equal(stored, derived):
@@ -576,13 +662,6 @@ def read_benchmark(path: str | os.PathLike[str], *, lazy: bool = False) -> Bench
             f"{path}: labels/label: expected p_success >= 0.5, found {bool(stored_label[row])} "
             f"with p_success {labels.p_success[row]!r} in row {row}"
         )
-    return Benchmark(
-        objects=objects,
-        object_index=index.astype(np.int32),
-        labels=labels,
-        metadata=metadata,
-        **arrays,
-    )
 
 
 def same_bits(a: np.ndarray, b: np.ndarray) -> bool:

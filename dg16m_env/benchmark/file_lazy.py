@@ -11,9 +11,9 @@ from typing import Any
 import h5py
 import numpy as np
 
-from dataset_gen.errors import Dg16mError
-from dataset_gen.hashing import mesh_sha256
-from dataset_gen.objects import ConvexPart, part_from_dict
+from dataset_gen.objects.grasp_object import ConvexPart, part_from_dict
+from dg16m_core.errors import Dg16mError
+from dg16m_core.hashing import mesh_sha256
 from dg16m_env.benchmark.model import BenchmarkError, BenchmarkObject
 
 MAX_DECIMALS = 9
@@ -52,19 +52,9 @@ def checked_dataset(
 def read_checked(
     f: h5py.File, path: Path, key: str, shape: tuple[int | None, ...], kinds: str
 ) -> np.ndarray:
-    if key not in f:
-        raise BenchmarkError(f"{path}: expected dataset {key!r}, found it missing")
-    arr = f[key][()]
-    if (
-        arr.dtype.kind not in kinds
-        or arr.ndim != len(shape)
-        or any(want is not None and got != want for got, want in zip(arr.shape, shape, strict=True))
-    ):
-        raise BenchmarkError(
-            f"{path}: {key}: expected shape {shape} of kind {kinds!r}, found {arr.shape} "
-            f"{arr.dtype}"
-        )
-    return arr
+    """The values of dataset ``key``, once its shape (None: any length) and dtype kind (one of
+    ``kinds``) are checked (:func:`checked_dataset`)."""
+    return checked_dataset(f, path, key, shape, kinds)[()]
 
 
 class LazyReader:

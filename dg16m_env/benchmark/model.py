@@ -14,19 +14,19 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.checks import check_fields, check_number, known_fields
-from dataset_gen.decomposition import (
+from dataset_gen.objects.decomposition import (
     DecompositionParameters,
 )
-from dataset_gen.errors import Dg16mError, MeshError
-from dataset_gen.objects import (
+from dataset_gen.objects.grasp_object import (
     ConvexPart,
     GraspObject,
 )
-from dataset_gen.parameters import PAPER
-from dataset_gen.sources import (
+from dataset_gen.sources.object_source import (
     ObjectSource,
 )
+from dg16m_core.checks import check_fields, check_number, known_fields
+from dg16m_core.errors import Dg16mError, MeshError
+from dg16m_core.parameters import PAPER
 from dg16m_env.physics.labels import (
     LEVELS,
     GraspLabels,
@@ -47,7 +47,7 @@ SOURCES = ("fc_pass", "fc_fail", "random", "farthest", "file_pass", "file_fail",
 """Where a benchmark pair comes from (the arms): force-closure-passing candidates, failing
 candidates with loss > ``PAPER.failing_min_loss``, random candidates, farthest pairs, the
 passing / failing pairs of a user's DG16M file, or robust candidates (passing, and a disturbance
-motion ratio <= 1 against every protocol load, :mod:`dataset_gen.robust`; an extra arm beyond
+motion ratio <= 1 against every protocol load, :mod:`dataset_gen.grasps.robust`; an extra arm beyond
 the paper, drawn when ``n_robust > 0``)."""
 
 ARMS = ("fc_pass", "fc_fail", "random", "farthest")
@@ -77,7 +77,7 @@ class BenchmarkParameters:
             grasp whose centre is farthest from it).
         n_robust: robust pairs per object (``fc_robust``, beyond the paper; 0, the default,
             draws none): passing candidates whose disturbance motion ratio is at most 1
-            (:mod:`dataset_gen.robust`). Drawn after the other arms, so they do not change.
+            (:mod:`dataset_gen.grasps.robust`). Drawn after the other arms, so they do not change.
         failing_min_loss: failing candidates must have a loss above this (N).
         mu: friction coefficient (sampling, force closure and simulation).
         mass: object mass (kg).
@@ -88,7 +88,7 @@ class BenchmarkParameters:
         protocol: trial protocol (``gravity`` is used by force closure too).
         perturbation: K, d and theta of the success probabilities (its seed is the labels').
         decomposition: CoACD's settings for mesh objects without convex parts (None, the
-            default: :class:`dataset_gen.decomposition.DecompositionParameters`' defaults); the
+            default: :class:`dataset_gen.objects.decomposition.DecompositionParameters`' defaults); the
             parts are stored in the file, so labels never depend on a re-run of CoACD.
         hull_grid: round a mesh object's CoACD hull vertices to multiples of this many metres
             before anything uses them (sampling, simulation), so the file stores them exactly
@@ -99,7 +99,7 @@ class BenchmarkParameters:
 
     ``mu``, ``mass``, ``f_high``, ``threshold``, ``min_center_distance`` and the scene's and
     protocol's friction, squeeze force and gravity default to the paper's values
-    (:data:`dataset_gen.parameters.PAPER`).
+    (:data:`dg16m_core.parameters.PAPER`).
     """
 
     seed: int = 0
@@ -165,7 +165,7 @@ class BenchmarkParameters:
         return out
 
     def decomposition_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments of :func:`dataset_gen.decomposition.object_parts`."""
+        """Keyword arguments of :func:`dataset_gen.objects.decomposition.object_parts`."""
         return {} if self.decomposition is None else {"params": self.decomposition}
 
     def force_closure_kwargs(self) -> dict[str, float]:

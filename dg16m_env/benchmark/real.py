@@ -1,6 +1,6 @@
 """The real-object benchmark: 300 furniture models from Debian's ``sweethome3d-furniture``.
 
-Where the objects come from: ``dg16m objects import-sweethome3d`` (:mod:`dataset_gen.sweethome3d`)
+Where the objects come from: ``dg16m objects import-sweethome3d`` (:mod:`dataset_gen.real.sweethome3d`)
 writes a folder of repaired, decimated meshes in metres with a ``manifest.json`` (source,
 creator, licence, sha256 of every OBJ file) and ``ATTRIBUTION.md``.
 
@@ -50,12 +50,12 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.atomic import write_bytes_atomic, write_json_atomic, write_text_atomic
-from dataset_gen.decomposition import DecompositionParameters
-from dataset_gen.hashing import file_sha256
 from dataset_gen.io.manifest import read_manifest, write_manifest
-from dataset_gen.sources import ObjectSource, object_seed
-from dataset_gen.sweethome3d import attribution_text
+from dataset_gen.objects.decomposition import DecompositionParameters
+from dataset_gen.real.sweethome3d import attribution_text
+from dataset_gen.sources.object_source import ObjectSource, object_seed
+from dg16m_core.atomic import write_bytes_atomic, write_json_atomic, write_text_atomic
+from dg16m_core.hashing import file_sha256
 from dg16m_env.benchmark.build import (
     BuildLimits,
     build_objects,

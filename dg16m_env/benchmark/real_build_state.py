@@ -32,8 +32,8 @@ import os
 from pathlib import Path
 from typing import Any
 
-from dataset_gen.atomic import write_bytes_atomic, write_json_atomic
 from dataset_gen.io.manifest import MANIFEST_NAME, read_manifest
+from dg16m_core.atomic import write_bytes_atomic, write_json_atomic
 from dg16m_env.benchmark.model import BenchmarkError
 from dg16m_env.benchmark.real import import_entries
 

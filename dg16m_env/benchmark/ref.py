@@ -15,7 +15,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from dataset_gen.hashing import file_sha256
+from dg16m_core.arguments import listed_ids
+from dg16m_core.hashing import file_sha256
 from dg16m_env.benchmark.file import read_benchmark
 from dg16m_env.benchmark.model import Benchmark, BenchmarkError
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK, benchmark_file
@@ -144,12 +145,7 @@ def parse_object_ids(text: str) -> list[str]:
         BenchmarkError: nothing in it.
     """
     path = Path(text)
-    if "," not in text and path.is_file():
-        lines = path.read_text(encoding="utf-8").splitlines()
-        ids = [line.split("#", 1)[0].strip() for line in lines]
-    else:
-        ids = [part.strip() for part in text.split(",")]
-    ids = [i for i in ids if i]
+    ids = listed_ids(text, path if "," not in text and path.is_file() else None)
     if not ids:
         raise BenchmarkError(f"--objects: expected object ids (a,b,c or a file), found {text!r}")
     return ids

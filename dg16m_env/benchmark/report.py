@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.json_values import json_ready
+from dg16m_core.json_values import json_ready
 from dg16m_env.benchmark.model import SOURCES, Benchmark
 from dg16m_env.physics.labels import LEVELS
 from dg16m_env.physics.reseat import shift_summary

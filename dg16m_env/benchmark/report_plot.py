@@ -7,7 +7,7 @@ the hand-line diagnostic and contacts after *close*).
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -76,22 +76,30 @@ def _plot_gsr(ax: Any, report: Mapping[str, Any]) -> None:
     ax.grid(axis="y", alpha=0.3)
 
 
+def _arm_bars(ax: Any, x: np.ndarray, bars: Sequence[tuple[str, Any, str]]) -> None:
+    """Side by side at each ``x``, one bar per arm: ``(arm, heights, legend label)``."""
+    width = 0.8 / max(1, len(bars))
+    for j, (arm, heights, label) in enumerate(bars):
+        ax.bar(
+            x + (j - (len(bars) - 1) / 2) * width,
+            heights,
+            width,
+            color=_arm_color(arm),
+            label=label,
+        )
+
+
 def _plot_histogram(ax: Any, report: Mapping[str, Any]) -> None:
     hist = report["p_histogram"]
     values = hist["values"]
     arms = list(hist["exact"])
     x = np.arange(len(values))
-    width = 0.8 / max(1, len(arms))
-    for j, arm in enumerate(arms):
+    bars = []
+    for arm in arms:
         counts = np.array(hist["exact"][arm], dtype=np.float64)
         share = 100 * counts / counts.sum() if counts.sum() else counts
-        ax.bar(
-            x + (j - (len(arms) - 1) / 2) * width,
-            share,
-            width,
-            color=_arm_color(arm),
-            label=f"{arm} ({int(counts.sum())} pairs)",
-        )
+        bars.append((arm, share, f"{arm} ({int(counts.sum())} pairs)"))
+    _arm_bars(ax, x, bars)
     trials = hist["trials_per_pair"]
     ax.set_xticks(x, [f"{k}/{trials}" for k in range(trials + 1)])
     ax.set_xlabel(f"success probability p (trials held of {trials}), {hist['level']} level")
@@ -106,18 +114,14 @@ def _plot_phases(ax: Any, report: Mapping[str, Any]) -> None:
     names = list(phases["pooled"]["phases"])
     arms = list(phases["by_arm"])
     x = np.arange(len(names))
-    width = 0.8 / max(1, len(arms))
     top = 0
-    for j, arm in enumerate(arms):
+    bars = []
+    for arm in arms:
         counts = [phases["by_arm"][arm]["phases"].get(n, 0) for n in names]
         top = max(top, *counts)
-        ax.bar(
-            x + (j - (len(arms) - 1) / 2) * width,
-            counts,
-            width,
-            color=_arm_color(arm),
-            label=f"{arm} ({sum(counts)} of {phases['by_arm'][arm]['trials']} trials)",
-        )
+        trials = phases["by_arm"][arm]["trials"]
+        bars.append((arm, counts, f"{arm} ({sum(counts)} of {trials} trials)"))
+    _arm_bars(ax, x, bars)
     ax.set_xticks(x, names, rotation=50, ha="right")
     ax.set_xlabel("phase where the trial first broke the bounds")
     ax.set_ylabel("failed trials (log scale)")
@@ -209,7 +213,7 @@ def plot_summary(
     share of valid nominal trials with a hand without contact after close, per arm.
     ``report``: the benchmark's :func:`benchmark_report` when already computed. Never touches
     pyplot or the matplotlib backend."""
-    from dataset_gen.figures import new_figure, save_png
+    from dg16m_core.figures import new_figure, save_png
 
     report = benchmark_report(bench) if report is None else report
     fig = new_figure(22, 10.5)

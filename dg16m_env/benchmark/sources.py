@@ -13,23 +13,23 @@ from pathlib import Path
 
 import numpy as np
 
-from dataset_gen.errors import Dg16mError, MeshError
-from dataset_gen.gripper import get_gripper
+from dataset_gen.grasps.gripper import get_gripper
 from dataset_gen.io import (
     DualGraspSet,
     read_dg16m,
 )
-from dataset_gen.objects import (
+from dataset_gen.objects.grasp_object import (
     MESH_SUFFIXES,
     check_mesh_folder,
 )
-from dataset_gen.procedural import benchmark_specs
-from dataset_gen.sources import (
+from dataset_gen.sources.object_source import (
     ObjectSource,
     mesh_sources,
     procedural_sources,
     read_ids,
 )
+from dataset_gen.sources.procedural import benchmark_specs
+from dg16m_core.errors import Dg16mError, MeshError
 from dg16m_env.benchmark.model import BenchmarkError
 
 # --------------------------------------------------------------------------------------------
@@ -108,7 +108,7 @@ def procedural_benchmark_sources(limit: int | None = None) -> list[BenchmarkSour
 
 
 def read_split(split: str) -> list[str]:
-    """Object ids from a split (:func:`dataset_gen.sources.read_ids`): a text file (one id per
+    """Object ids from a split (:func:`dataset_gen.sources.object_source.read_ids`): a text file (one id per
     line, ``#`` comments), a JSON file's list (``split.json:key``) or ``a,b,c``."""
     try:
         return read_ids(split, flag="--split")
@@ -156,7 +156,7 @@ def mesh_benchmark_sources(
     ones (:func:`~dg16m_env.benchmark.arms.sampled_pairs`).
 
     Args:
-        meshes: folder of mesh files (:data:`~dataset_gen.objects.MESH_SUFFIXES`).
+        meshes: folder of mesh files (:data:`~dataset_gen.objects.grasp_object.MESH_SUFFIXES`).
         split: the object ids to take, in this order (stems or file names); default all.
         scale: factor applied to the files' coordinates (default: the files are in metres).
         allow_any_size: accept objects whose longest side is outside the dual-arm range.

@@ -1,5 +1,5 @@
 """The ``dg16m`` subcommands of :mod:`dg16m_env` (registered through the ``dg16m.commands``
-entry points in ``pyproject.toml``; :mod:`dataset_gen.cli` discovers them): ``dg16m benchmark``
+entry points in ``pyproject.toml``; :mod:`dg16m_core.cli` discovers them): ``dg16m benchmark``
 (:mod:`.benchmark`), ``dg16m evaluate`` and ``dg16m submission`` (:mod:`.evaluate`), and
 ``dg16m sim`` (:mod:`.sim`).
 

@@ -10,8 +10,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-from dataset_gen.cli import add_command
-from dataset_gen.parameters import PROTOCOL
+from dg16m_core import arguments
+from dg16m_core.cli import add_command
+from dg16m_core.parameters import PROTOCOL
 from dg16m_env.cli.evaluate import benchmark_argument
 from dg16m_env.physics.reseat import DEFAULT_RESEAT_MAX, RESEAT_STEP
 from dg16m_env.physics.simulator import add_simulator_arguments, simulator_from_args
@@ -53,7 +54,7 @@ INFO_EXAMPLES = (
 
 
 def register(subparsers: Any) -> None:
-    """Add ``dg16m benchmark {build,info}``."""
+    """Add ``dg16m benchmark {build,info,split-real,build-real}``."""
     bench = add_command(
         subparsers,
         "benchmark",
@@ -63,6 +64,13 @@ def register(subparsers: Any) -> None:
         "'dg16m benchmark build --help').",
     )
     sub = bench.add_subparsers(dest="benchmark_command", metavar="ACTION", required=True)
+    _register_build(sub)
+    _register_info(sub)
+    _register_real(sub)
+
+
+def _register_build(sub: Any) -> None:
+    """Add ``dg16m benchmark build``."""
     build = add_command(
         sub,
         "build",
@@ -95,10 +103,14 @@ def register(subparsers: Any) -> None:
             "finished objects stay done."
         ),
     )
-    build.add_argument("--out", type=Path, required=True, help="output folder")
-    build.add_argument(
-        "--limit", type=int, default=None, help="only the first N objects (of the split)"
-    )
+    _build_arguments(build)
+    build.set_defaults(handler=_build)
+
+
+def _build_arguments(build: argparse.ArgumentParser) -> None:
+    """The options of ``dg16m benchmark build``."""
+    arguments.add_out_argument(build, "output folder")
+    arguments.add_limit_argument(build, "only the first N objects (of the split)")
     build.add_argument(
         "--meshes",
         type=Path,
@@ -145,10 +157,8 @@ def register(subparsers: Any) -> None:
         help="gripper frame of the files' poses (default: the file's own, else robotiq_2f85 "
         "as in the DG16M release)",
     )
-    build.add_argument("--workers", type=int, default=1, help="local processes (default 1)")
-    build.add_argument("--backend", choices=("local", "ray"), default="local")
-    build.add_argument("--address", default=None, help="Ray address: auto or host:port")
-    build.add_argument("--seed", type=int, default=0, help="global seed (default 0)")
+    arguments.add_parallel_arguments(build, "local processes (default 1)")
+    arguments.add_seed_argument(build, "global seed (default 0)")
     build.add_argument(
         "--perturbations",
         type=int,
@@ -164,7 +174,7 @@ def register(subparsers: Any) -> None:
         metavar="N",
         help="also draw N robust pairs per object (arm fc_robust, beyond the paper: force-closure "
         "passing and a disturbance motion ratio <= 1 against every protocol load, see "
-        "dataset_gen.robust; default 20 for --meshes with the real settings, else 0: the "
+        "dataset_gen.grasps.robust; default 20 for --meshes with the real settings, else 0: the "
         "paper's four arms only)",
     )
     build.add_argument(
@@ -178,9 +188,11 @@ def register(subparsers: Any) -> None:
         "reason; 'plain': the procedural objects' settings, no screen and no budgets",
     )
     add_simulator_arguments(build)
-    build.add_argument("--no-progress", action="store_true", help="no progress bar")
-    build.set_defaults(handler=_build)
+    arguments.add_progress_argument(build)
 
+
+def _register_info(sub: Any) -> None:
+    """Add ``dg16m benchmark info``."""
     info = add_command(
         sub,
         "info",
@@ -219,7 +231,6 @@ def register(subparsers: Any) -> None:
         "GSR by hand-line distance, hands without contact after close)",
     )
     info.set_defaults(handler=_info)
-    _register_real(sub)
 
 
 REAL_EXAMPLES = (
@@ -233,6 +244,7 @@ REAL_EXAMPLES = (
 
 
 def _register_real(sub: Any) -> None:
+    """Add ``dg16m benchmark {split-real,build-real}`` (their arguments on use)."""
     add_command(
         sub,
         "split-real",
@@ -271,9 +283,9 @@ def _split_real_arguments(split: argparse.ArgumentParser) -> None:
     from dg16m_env.benchmark.real import REAL_SIZE
 
     split.add_argument("--meshes", type=Path, required=True, help="an import-sweethome3d folder")
-    split.add_argument("--out", type=Path, required=True, help="the split file to write (JSON)")
+    arguments.add_out_argument(split, "the split file to write (JSON)")
     split.add_argument("--size", type=int, default=REAL_SIZE, help=f"default: {REAL_SIZE}")
-    split.add_argument("--seed", type=int, default=0, help="default: 0")
+    arguments.add_seed_argument(split, "default: 0")
     split.add_argument("--revise", type=Path, help="a split to bring up to date (keeps its orders)")
     split.add_argument("--note", default="", help="--revise: why (recorded in the split)")
     split.set_defaults(handler=_split_real)
@@ -297,11 +309,11 @@ def _build_real_description() -> str:
 
 def _build_real_arguments(build: argparse.ArgumentParser) -> None:
     build.add_argument("--meshes", type=Path, required=True, help="an import-sweethome3d folder")
-    build.add_argument("--out", type=Path, required=True, help="build folder")
+    arguments.add_out_argument(build, "build folder")
     build.add_argument("--split", type=Path, default=None, help="split file (default: shipped)")
-    build.add_argument("--limit", type=int, default=None, help="a pilot of N objects")
-    build.add_argument("--workers", type=int, default=1, help="processes (default: 1)")
-    build.add_argument("--no-progress", action="store_true", help="no progress bar")
+    arguments.add_limit_argument(build, "a pilot of N objects")
+    arguments.add_parallel_arguments(build, "processes (default: 1)", ray=False)
+    arguments.add_progress_argument(build)
     add_simulator_arguments(build)
     build.set_defaults(handler=_build_real)
 
@@ -471,9 +483,7 @@ def _build(args: argparse.Namespace) -> int:
             items,
             args.out,
             params,
-            workers=args.workers,
-            backend=args.backend,
-            address=args.address,
+            **arguments.parallel_options(args),
             progress=not args.no_progress,
             simulator=simulator,
             limits=limits,

@@ -1,10 +1,11 @@
 """``dg16m demos``: demonstrations of the Lift expert in Farama's Minari format.
 
-``collect`` runs :class:`~dg16m_env.envs.lift_feedback_expert.FeedbackLiftExpert` on
+``collect`` runs :class:`~dg16m_env.envs.lift.experts.FeedbackLiftExpert` on
 ``dg16m_env/DualGraspLift-v2`` (or ``-v1``: ``--env-id``) and writes a Minari dataset;
 ``replay`` re-runs recorded episodes and checks them step for step; ``info`` summarises a
-dataset. The logic lives in :mod:`dg16m_env.envs.lift_demos`; this module parses and prints. Building the parser imports
-no MuJoCo, Minari or h5py: the handlers import them when they run.
+dataset. The logic lives in :mod:`dg16m_env.envs.lift.demos` (collecting) and
+:mod:`dg16m_env.envs.lift.demo_files` (reading, replaying); this module parses and prints.
+Building the parser imports no MuJoCo, Minari or h5py: the handlers import them when they run.
 """
 
 from __future__ import annotations
@@ -15,9 +16,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from dataset_gen.cli import add_command
-from dataset_gen.errors import Dg16mError
-from dg16m_env.envs.lift_demos import (
+from dg16m_core.arguments import add_progress_argument, add_seed_argument
+from dg16m_core.cli import add_command
+from dg16m_core.errors import Dg16mError
+from dg16m_env.envs.lift.demo_files import (
     DEFAULT_DATASET_ID,
     DEMO_OBS_MODES,
     ENV_ID,
@@ -170,9 +172,7 @@ def _collect_arguments(collect: argparse.ArgumentParser) -> None:
         "train and held-out split the benchmark's objects as every learning baseline does "
         "(every third object held out; default: train)",
     )
-    collect.add_argument(
-        "--seed", type=int, default=0, metavar="S", help="seed of episode 0 (default: 0)"
-    )
+    add_seed_argument(collect, "seed of episode 0 (default: 0)", metavar="S")
     collect.add_argument(
         "--workers", type=int, default=1, metavar="W", help="processes (default: 1)"
     )
@@ -190,7 +190,7 @@ def _collect_arguments(collect: argparse.ArgumentParser) -> None:
         help="the env's episode length (default: the env's, 200 steps = 10 s)",
     )
     collect.add_argument("--force", action="store_true", help="replace an existing dataset")
-    collect.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_argument(collect)
     collect.set_defaults(handler=_collect)
 
 
@@ -200,7 +200,8 @@ def _collect_arguments(collect: argparse.ArgumentParser) -> None:
 
 
 def _collect(args: argparse.Namespace) -> int:
-    from dg16m_env.envs.lift_demos import collect_lift_demos, datasets_root
+    from dg16m_env.envs.lift.demo_files import datasets_root
+    from dg16m_env.envs.lift.demos import collect_lift_demos
 
     env_kwargs = {} if args.episode_steps is None else {"episode_steps": args.episode_steps}
     report = collect_lift_demos(
@@ -239,7 +240,7 @@ def _episode_list(text: str) -> list[int]:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from dg16m_env.envs.lift_demos import demos_metadata, open_lift_demos, replay_lift_demo
+    from dg16m_env.envs.lift.demo_files import demos_metadata, open_lift_demos, replay_lift_demo
 
     dataset = open_lift_demos(args.dataset)
     demos_metadata(dataset)  # refuse another dataset before making an env
@@ -264,7 +265,7 @@ def _replay(args: argparse.Namespace) -> int:
 
 
 def _info(args: argparse.Namespace) -> int:
-    from dg16m_env.envs.lift_demos import open_lift_demos, summarize_lift_demos
+    from dg16m_env.envs.lift.demo_files import open_lift_demos, summarize_lift_demos
 
     dataset = open_lift_demos(args.dataset)
     summary = summarize_lift_demos(dataset)
@@ -277,7 +278,8 @@ def _info(args: argparse.Namespace) -> int:
 
 
 def format_summary(summary: dict[str, Any]) -> str:
-    """The text ``dg16m demos info`` prints for :func:`~dg16m_env.envs.lift_demos.summarize_lift_demos`."""
+    """The text ``dg16m demos info`` prints for
+    :func:`~dg16m_env.envs.lift.demo_files.summarize_lift_demos`."""
     meta, steps, rate = summary["metadata"], summary["steps"], summary["success_rate"]
     objects = summary["objects"]
     n = summary["episodes"]

@@ -10,8 +10,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from dataset_gen.cli import add_command
-from dataset_gen.errors import Dg16mError
+from dg16m_core import arguments
+from dg16m_core.cli import add_command
+from dg16m_core.errors import Dg16mError
 from dg16m_env.physics.simulator import add_simulator_arguments, simulator_from_args
 
 EVALUATE_EXAMPLES = (
@@ -19,8 +20,8 @@ EVALUATE_EXAMPLES = (
     "  dg16m evaluate runs/refs/force_closure.h5 --evaluators fce,gsr --workers 2 "
     "--out runs/fc.json\n"
     "  # a quick look: 5 objects of the real benchmark (the result says it is partial)\n"
-    "  dg16m evaluate --predictor baselines.pairing:force_closure_baseline --evaluators fce,gsr "
-    "--benchmark real --limit 5\n"
+    "  dg16m evaluate --predictor baselines.pairing_baselines:force_closure_baseline "
+    "--evaluators fce,gsr --benchmark real --limit 5\n"
     "  # after Ctrl-C: finished evaluators were kept in --out; skip them\n"
     "  dg16m evaluate runs/refs/force_closure.h5 --out runs/fc.json --resume\n"
     "  # run your predictor (a function observation -> dual grasps) in a sandboxed process\n"
@@ -80,12 +81,8 @@ def add_subset_arguments(parser: argparse.ArgumentParser) -> None:
         help="only these objects: comma-separated ids, or a file with one id a line; the "
         "submission must hold exactly them and the result is marked partial (never ranked)",
     )
-    group.add_argument(
-        "--limit",
-        type=int,
-        default=None,
-        metavar="N",
-        help="only the benchmark's first N objects (a partial run, as --objects)",
+    arguments.add_limit_argument(
+        group, "only the benchmark's first N objects (a partial run, as --objects)", metavar="N"
     )
 
 
@@ -137,6 +134,12 @@ def _predictor_options(parser: argparse.ArgumentParser) -> None:
 
 def register(subparsers: Any) -> None:
     """Add ``dg16m evaluate`` and ``dg16m submission {validate,make}``."""
+    _register_evaluate(subparsers)
+    _register_submission(subparsers)
+
+
+def _register_evaluate(subparsers: Any) -> None:
+    """Add ``dg16m evaluate``."""
     ev = add_command(
         subparsers,
         "evaluate",
@@ -153,6 +156,12 @@ def register(subparsers: Any) -> None:
             "sha256 and every seed; the same inputs give the same result."
         ),
     )
+    _evaluate_arguments(ev)
+    ev.set_defaults(handler=_evaluate)
+
+
+def _evaluate_arguments(ev: argparse.ArgumentParser) -> None:
+    """The options of ``dg16m evaluate``."""
     ev.add_argument("submission", type=Path, nargs="?", default=None, help="submission file (.h5)")
     ev.add_argument(
         "--evaluators",
@@ -192,9 +201,7 @@ def register(subparsers: Any) -> None:
         "(sha256 and objects), seeds, parameters and evaluator and package versions, and run "
         "only the others (a --predictor run also reuses the submission it wrote)",
     )
-    ev.add_argument("--workers", type=int, default=1, help="local processes (default 1)")
-    ev.add_argument("--backend", choices=("local", "ray"), default="local")
-    ev.add_argument("--address", default=None, help="Ray address: auto or host:port")
+    arguments.add_parallel_arguments(ev, "local processes (default 1)")
     ev.add_argument(
         "--perturbations",
         type=int,
@@ -202,7 +209,7 @@ def register(subparsers: Any) -> None:
         metavar="K",
         help="gsr: perturbed trials per grasp (default: the benchmark's, 8)",
     )
-    ev.add_argument("--seed", type=int, default=0, help="seed of the confidence intervals")
+    arguments.add_seed_argument(ev, "seed of the confidence intervals")
     ev.add_argument("--k", type=int, default=10, help="classifier: top-k per object (default 10)")
     ev.add_argument("--env-id", default=None, help="policy: a registered Gymnasium id")
     ev.add_argument("--episodes", type=int, default=100, help="policy: episodes (default 100)")
@@ -216,9 +223,11 @@ def register(subparsers: Any) -> None:
     _predictor_options(ev)
     add_simulator_arguments(ev)
     ev.add_argument("--list", action="store_true", help="list the registered evaluators and exit")
-    ev.add_argument("--no-progress", action="store_true", help="no progress bars")
-    ev.set_defaults(handler=_evaluate)
+    arguments.add_progress_argument(ev, "no progress bars")
 
+
+def _register_submission(subparsers: Any) -> None:
+    """Add ``dg16m submission {validate,make}``."""
     sub = add_command(
         subparsers,
         "submission",
@@ -253,9 +262,9 @@ def register(subparsers: Any) -> None:
     source = make.add_mutually_exclusive_group(required=True)
     source.add_argument("--from-dg16m", type=Path, metavar="DIR", help="folder of <id>.h5 files")
     source.add_argument("--predictor", metavar="MODULE:CALLABLE")
-    make.add_argument("--out", type=Path, required=True, help="the submission file to write")
+    arguments.add_out_argument(make, "the submission file to write")
     make.add_argument("--k", type=int, default=10, help="--from-dg16m: pairs per object")
-    make.add_argument("--seed", type=int, default=0, help="--from-dg16m: seed of the choice")
+    arguments.add_seed_argument(make, "--from-dg16m: seed of the choice")
     make.add_argument(
         "--grasp-gripper",
         default=None,
@@ -264,7 +273,7 @@ def register(subparsers: Any) -> None:
     )
     add_benchmark_arguments(make)
     _predictor_options(make)
-    make.add_argument("--no-progress", action="store_true", help="no progress bar")
+    arguments.add_progress_argument(make)
     make.set_defaults(handler=_make)
 
 
@@ -389,7 +398,7 @@ def _score_submission(
     """Score a submission file (given, or made by ``--predictor``) with each evaluator, writing
     ``--out`` after each; with ``--resume``, results ``--out`` already holds for the same run
     are kept and not scored again."""
-    from dataset_gen.hashing import file_sha256
+    from dg16m_core.hashing import file_sha256
     from dg16m_env.evaluators import submission_evaluators
 
     stored_subject, stored = _stored(args.out) if args.resume else ({}, {})
@@ -403,9 +412,7 @@ def _score_submission(
     built = submission_evaluators(
         _names(args.evaluators, "fce,gsr"),
         ref,
-        workers=args.workers,
-        backend=args.backend,
-        address=args.address,
+        **arguments.parallel_options(args),
         seed=args.seed,
         n_perturbations=args.perturbations,
         progress=progress,
@@ -441,7 +448,7 @@ def _check_resumable(
 ) -> None:
     """Refuse to keep a stored result of another run (another subject, benchmark, subset,
     seeds, parameters or versions): mixing runs in one file would be a wrong result."""
-    from dataset_gen.json_values import json_ready
+    from dg16m_core.json_values import json_ready
 
     stored = result.to_dict()
     found = stored.get("subject", {}).get("sha256")
@@ -466,7 +473,7 @@ def _reusable_submission(
 ) -> tuple[Path, str] | None:
     """``--resume`` of a ``--predictor`` run: the submission the earlier run wrote and its
     sha256, when it was made by the same predictor for the same objects and is unchanged."""
-    from dataset_gen.hashing import file_sha256
+    from dg16m_core.hashing import file_sha256
 
     file, sha256 = stored_subject.get("file"), stored_subject.get("sha256")
     if not (isinstance(file, str) and isinstance(sha256, str)):

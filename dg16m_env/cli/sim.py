@@ -6,7 +6,7 @@ grasp file's pairs and compares the success rates of its force-closure passing a
 
 Heavy imports (MuJoCo, the benchmark, CoACD, numpy) happen inside the handlers so that ``dg16m
 --help`` stays fast; ``replay`` and ``run``, whose ``--coacd-threshold`` help reads the default of
-:mod:`dataset_gen.decomposition` (trimesh), add their arguments when they are used.
+:mod:`dataset_gen.objects.decomposition` (trimesh), add their arguments when they are used.
 """
 
 from __future__ import annotations
@@ -17,9 +17,10 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from dataset_gen.cli import add_command
-from dataset_gen.errors import Dg16mError
-from dataset_gen.parameters import PAPER
+from dg16m_core.arguments import add_limit_argument, add_seed_argument
+from dg16m_core.cli import add_command
+from dg16m_core.errors import Dg16mError
+from dg16m_core.parameters import PAPER
 from dg16m_env.physics.simulator import add_simulator_arguments, simulator_from_args
 
 if TYPE_CHECKING:
@@ -60,7 +61,7 @@ RUN_EXAMPLES = (
 
 
 def _object_options(parser: Any, *, required: bool) -> None:
-    from dataset_gen.decomposition import DecompositionParameters  # trimesh: on use only
+    from dataset_gen.objects.decomposition import DecompositionParameters  # trimesh: on use only
 
     group = parser.add_mutually_exclusive_group(required=required)
     group.add_argument("--mesh", type=Path, help="the grasp file's object mesh")
@@ -200,14 +201,10 @@ def _replay_arguments(replay: argparse.ArgumentParser) -> None:
 def _run_arguments(run: argparse.ArgumentParser) -> None:
     run.add_argument("file", type=Path, metavar="FILE.h5", help="a DG16M grasp file")
     _object_options(run, required=True)
-    run.add_argument(
-        "--limit",
-        type=int,
-        default=None,
-        metavar="K",
-        help="at most K passing and K failing pairs (seeded sample; default: all)",
+    add_limit_argument(
+        run, "at most K passing and K failing pairs (seeded sample; default: all)", metavar="K"
     )
-    run.add_argument("--seed", type=int, default=0, help="seed of the --limit sample")
+    add_seed_argument(run, "seed of the --limit sample")
     run.add_argument(
         "--perturbations",
         type=int,
@@ -279,13 +276,13 @@ def _grasp_object(args: argparse.Namespace, object_scale: float):
             "--coacd-threshold: expected only with --mesh (a procedural object has exact parts)"
         )
     if args.procedural is not None:
-        from dataset_gen.procedural import make_procedural_object, parse_object_id
+        from dataset_gen.sources.procedural import make_procedural_object, parse_object_id
 
         family, seed = parse_object_id(args.procedural)
         obj = make_procedural_object(family, seed, mass=args.mass)
         return obj, obj.parts
-    from dataset_gen.decomposition import DecompositionParameters, object_parts
-    from dataset_gen.objects import load_object
+    from dataset_gen.objects.decomposition import DecompositionParameters, object_parts
+    from dataset_gen.objects.grasp_object import load_object
 
     # The grasp file's scale is authoritative: no plausibility check on the object's size.
     obj = load_object(args.mesh, scale=object_scale, mass=args.mass, allow_any_size=True)
@@ -529,7 +526,7 @@ def _invalid_report(results: Any, hits: dict[str, int]) -> list[str]:
 
 def _penetration_advice(args: argparse.Namespace, gripper: str) -> list[str]:
     """What to do when open hands start inside the object (printed after the report)."""
-    from dataset_gen.gripper import PANDA
+    from dataset_gen.grasps.gripper import PANDA
 
     palm = 2e3 * PANDA.palm_half_extents[0]
     lines = ["  what to do (an open hand inside the object cannot reach its grasp):"]
@@ -583,7 +580,7 @@ def _run_payload(
     simulator: dict[str, Any],
 ) -> dict[str, Any]:
     """The JSON report of ``dg16m sim run`` (machine-readable: full precision, NaN as null)."""
-    from dataset_gen.json_values import json_ready
+    from dg16m_core.json_values import json_ready
 
     return {
         "file": str(file),

@@ -7,18 +7,20 @@ Ids (each documented in its module, with a version history):
   trial of the benchmark protocol;
 * ``dg16m_env/DualGraspSelect-v0`` (:mod:`.dual_grasp_select`): one step: pick one of K
   candidate dual grasps of the benchmark;
-* ``dg16m_env/DualGraspLift-v0`` (:mod:`.dual_grasp_lift`): closed loop: two floating Panda
-  hands lift an object from a table;
-* ``dg16m_env/DualGraspLift-v1`` (:mod:`.dual_grasp_lift_v1`): the same task as a learning
-  benchmark: reward modes where success pays best, observation modes, state save and restore;
-* ``dg16m_env/DualGraspLift-v2`` (:mod:`.dual_grasp_lift_v2`): v1's task on 5 ms physics steps
-  with compiled step arithmetic, about three times v1's steps per second; ``gym.make_vec``
-  gives it :class:`.lift_vector.LiftVectorEnv` (blocks of environments stepped by this
-  process and worker processes, one message per worker per step).
+* ``dg16m_env/DualGraspLift-v0`` (:mod:`.lift.v0`): closed loop: two floating Panda hands lift
+  an object from a table (deprecated: its reward pays a hover more than a success; removed in
+  0.3.0);
+* ``dg16m_env/DualGraspLift-v1`` (:mod:`.lift.v1`): the same task as a learning benchmark:
+  reward modes where success pays best, observation modes, state save and restore;
+* ``dg16m_env/DualGraspLift-v2`` (:mod:`.lift.v2`): v1's task on 5 ms physics steps with
+  compiled step arithmetic, about three times v1's steps per second; ``gym.make_vec`` gives it
+  :class:`.lift.vector.LiftVectorEnv` (blocks of environments stepped by this process and
+  worker processes, one message per worker per step).
 
-The Lift task's reward is :mod:`.lift_reward` and its scripted expert :mod:`.lift_expert`;
-:mod:`.common`, :mod:`.objects` and :mod:`.spaces` serve the tasks. Layer rule: modules here
-import the evaluators, subjects, benchmark and physics layers below them, never
+The Lift task is one package, :mod:`.lift`: one task class (:mod:`.lift.task`) whose versions
+differ by a frozen record (:mod:`.lift.versions`), its reward, experts, demonstrations and
+vector env; :mod:`.common`, :mod:`.objects` and :mod:`.spaces` serve the tasks. Layer rule:
+modules here import the evaluators, subjects, benchmark and physics layers below them, never
 :mod:`dg16m_env.cli`.
 
 ``gym.make("dg16m_env/DualGraspSelect-v0")`` after ``import dg16m_env``; from a fresh
@@ -37,15 +39,15 @@ NAMESPACE = "dg16m_env"
 ENVIRONMENTS: dict[str, tuple[str, int | None]] = {
     "DualGraspPose-v0": ("dg16m_env.envs.dual_grasp_pose:DualGraspPoseEnv", None),
     "DualGraspSelect-v0": ("dg16m_env.envs.dual_grasp_select:DualGraspSelectEnv", None),
-    "DualGraspLift-v0": ("dg16m_env.envs.dual_grasp_lift:DualGraspLiftEnv", 200),
-    "DualGraspLift-v1": ("dg16m_env.envs.dual_grasp_lift_v1:DualGraspLiftV1Env", 200),
-    "DualGraspLift-v2": ("dg16m_env.envs.dual_grasp_lift_v2:DualGraspLiftV2Env", 200),
+    "DualGraspLift-v0": ("dg16m_env.envs.lift.v0:DualGraspLiftEnv", 200),
+    "DualGraspLift-v1": ("dg16m_env.envs.lift.v1:DualGraspLiftV1Env", 200),
+    "DualGraspLift-v2": ("dg16m_env.envs.lift.v2:DualGraspLiftV2Env", 200),
 }
 
 
 #: name -> ``vector_entry_point`` (``gym.make_vec``'s default for that id)
 VECTOR_ENTRY_POINTS: dict[str, str] = {
-    "DualGraspLift-v2": "dg16m_env.envs.lift_vector:lift_v2_vector_env",
+    "DualGraspLift-v2": "dg16m_env.envs.lift.vector:lift_v2_vector_env",
 }
 
 

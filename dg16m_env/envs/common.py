@@ -20,7 +20,7 @@ key                     flat shape   shaped     meaning
 ``normals``             (3 P,)       (P, 3)     unit outward normals at ``points``
 ``bounds``              (6,)         (2, 3)     the object's box: min corner, max corner (m)
 ``mask``                (P,)         (P,)       partial mode only: 1 = real point, 0 = padding
-``candidates``          (18 K,)      (K, 2, 9)  Select only: pose encodings (:mod:`.spaces`)
+``candidates``          (18 K,)      (K, 2, 9)  Select only: pose encodings (:mod:`~dg16m_env.envs.spaces`)
 ``candidate_contacts``  (24 K,)      (K, 4, 6)  Select only: contact points (m), outward normals
 ``candidate_mask``      (K,)         (K,)       Select only: 1 = a candidate, 0 = an empty slot
 ======================  ===========  =========  ===============================================
@@ -56,9 +56,9 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
-from dataset_gen.checks import check_integer
-from dataset_gen.errors import Dg16mError
-from dataset_gen.objects import GraspObject
+from dataset_gen.objects.grasp_object import GraspObject
+from dg16m_core.checks import check_integer
+from dg16m_core.errors import Dg16mError
 from dg16m_env.benchmark.ref import BenchmarkRef
 from dg16m_env.evaluators.fce import REASONS, fce_verdicts
 from dg16m_env.physics.cameras import CameraPose, DepthCameras, RendererSlot, offscreen_renderer

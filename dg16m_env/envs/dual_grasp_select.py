@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from dataset_gen.checks import check_integer
+from dg16m_core.checks import check_integer
 
 from .common import (
     STATUS_LABEL,

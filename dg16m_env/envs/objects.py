@@ -10,7 +10,7 @@ benchmark), so resetting onto an object again costs nothing. Cached values are s
 modify them.
 
 :func:`split_objects` is the train / held-out rule of every learning baseline and of the Lift
-demonstrations (:mod:`dg16m_env.envs.lift_demos`): every third object held out.
+demonstrations (:mod:`dg16m_env.envs.lift.demos`): every third object held out.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.objects import GraspObject
+from dataset_gen.objects.grasp_object import GraspObject
 from dg16m_env.benchmark.model import BenchmarkParameters
 from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
 from dg16m_env.physics.scene import Scene, compile_scene

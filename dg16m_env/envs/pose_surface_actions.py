@@ -2,7 +2,7 @@
 of the observed cloud, approaching along its inward normal.
 
 An action row ``[point, roll, depth]`` (each in ``[-1, 1]``) stands for one Panda hand pose
-(grasp frame -> object frame, :mod:`dataset_gen.gripper`: ``+x`` closing axis, ``+y`` approach
+(grasp frame -> object frame, :mod:`dataset_gen.grasps.gripper`: ``+x`` closing axis, ``+y`` approach
 axis, origin at the flange, grasp centre at ``contact_depth`` along ``+y``):
 
 * ``point`` -> the valid point of height rank ``i = floor((point + 1) / 2 * n)`` clipped to
@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dataset_gen.gripper import PANDA
+from dataset_gen.grasps.gripper import PANDA
 
 SURFACE_SIZE = 3
 """Numbers per hand in a surface action: point, roll, depth."""

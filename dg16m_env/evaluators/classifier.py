@@ -71,9 +71,9 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from dataset_gen.checks import check_integer
-from dataset_gen.errors import Dg16mError
-from dataset_gen.sources import object_seed
+from dataset_gen.sources.object_source import object_seed
+from dg16m_core.checks import check_integer
+from dg16m_core.errors import Dg16mError
 from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
 from dg16m_env.physics.labels import LEVELS
 from dg16m_env.rates import object_rate

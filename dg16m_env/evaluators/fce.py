@@ -1,9 +1,9 @@
 """``fce``: force-closure efficiency of submitted dual grasps (the paper's FCE).
 
 For each submitted dual grasp, each hand's jaws are closed on the object at its pose
-(:func:`dataset_gen.gripper.contacts_from_pose`: the finger faces sweep until they touch), which
+(:func:`dataset_gen.grasps.gripper.contacts_from_pose`: the finger faces sweep until they touch), which
 gives the four contacts; the two open hands must not overlap (the benchmark's gripper-gripper
-check, :func:`dataset_gen.pairing.grippers_collide`); then the force-closure check
+check, :func:`dataset_gen.grasps.pairing.grippers_collide`); then the force-closure check
 (:func:`dataset_gen.force_closure.evaluate`) runs with the benchmark's parameters (mass,
 gravity, friction, force bound, threshold). FCE = passing / submitted: a grasp whose jaws miss,
 whose open gripper collides with the object, that is too wide, whose pose is not rigid, or whose
@@ -25,13 +25,13 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from dataset_gen.errors import Dg16mError
 from dataset_gen.force_closure import evaluate
-from dataset_gen.gripper import ContactStatus, contacts_from_pose
-from dataset_gen.objects import GraspObject
-from dataset_gen.pairing import grippers_collide
-from dataset_gen.parallel import Backend, run_tasks
-from dataset_gen.sampling import SingleArmGrasps
+from dataset_gen.grasps.gripper import ContactStatus, contacts_from_pose
+from dataset_gen.grasps.pairing import grippers_collide
+from dataset_gen.grasps.sampling import SingleArmGrasps
+from dataset_gen.objects.grasp_object import GraspObject
+from dataset_gen.pipeline.parallel import Backend, run_tasks
+from dg16m_core.errors import Dg16mError
 from dg16m_env.benchmark.model import BenchmarkObject
 from dg16m_env.benchmark.ref import BenchmarkRef
 from dg16m_env.subjects.submission import Submission

@@ -33,11 +33,11 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.parallel import Backend
+from dataset_gen.pipeline.parallel import Backend
 from dg16m_env.benchmark.ref import BenchmarkRef
-from dg16m_env.physics.gsr_core import GraspJob, evaluate_objects
 from dg16m_env.physics.labels import LEVELS, concatenate_labels
 from dg16m_env.physics.simulator import Simulator, SimulatorError, check_simulator
+from dg16m_env.physics.success_probabilities import GraspJob, evaluate_objects
 from dg16m_env.physics.trial_protocol import PHASES, TrialStatus
 from dg16m_env.subjects.submission import Submission
 

@@ -59,7 +59,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from dataset_gen.checks import check_integer
+from dg16m_core.checks import check_integer
 
 from .registry import Evaluator, EvaluatorError, register
 from .result import EvaluationResult, code_subject, qualified_type

@@ -23,8 +23,8 @@ import inspect
 from collections.abc import Callable
 from typing import Any, ClassVar, TypeVar
 
-from dataset_gen.errors import Dg16mError
 from dataset_gen.io import package_version
+from dg16m_core.errors import Dg16mError
 
 from .result import EvaluationResult
 

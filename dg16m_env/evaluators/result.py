@@ -19,9 +19,9 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.atomic import write_json_atomic
-from dataset_gen.errors import Dg16mError
-from dataset_gen.json_values import json_ready
+from dg16m_core.atomic import write_json_atomic
+from dg16m_core.errors import Dg16mError
+from dg16m_core.json_values import json_ready
 from dg16m_env.rates import object_rate
 
 #: ``format`` of a result file written by ``dg16m evaluate``.

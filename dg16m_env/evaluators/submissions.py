@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.parallel import Backend, check_backend
+from dataset_gen.pipeline.parallel import Backend, check_backend
 from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
 from dg16m_env.physics.simulator import Simulator
 from dg16m_env.subjects.submission import Submission
@@ -114,7 +114,7 @@ class SubmissionEvaluator(Evaluator):
 
     def planned(self) -> dict[str, Any]:
         """See :meth:`Evaluator.planned`."""
-        from dataset_gen.json_values import json_ready
+        from dg16m_core.json_values import json_ready
 
         return json_ready(
             {

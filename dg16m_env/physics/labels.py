@@ -30,9 +30,9 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.checks import check_fields, check_integer, known_fields
-from dataset_gen.errors import Dg16mError
-from dataset_gen.sources import object_seed
+from dataset_gen.sources.object_source import object_seed
+from dg16m_core.checks import check_fields, check_integer, known_fields
+from dg16m_core.errors import Dg16mError
 from dg16m_env.physics.scene import Scene
 from dg16m_env.physics.simulator import Simulator
 from dg16m_env.physics.trial import run_trials

@@ -1,7 +1,7 @@
 """The lift scene: one free object resting on a table under real gravity, two floating Panda hands.
 
 Physics only; the task (actions, observations, reward, success) lives in
-:mod:`dg16m_env.envs.dual_grasp_lift`.
+:mod:`dg16m_env.envs.lift.task`.
 
 The model is the benchmark's trial scene (:func:`dg16m_env.physics.scene.scene_model`: the object as its
 convex parts with its inertia, two :func:`~dg16m_env.physics.scene.hand_model` hands, the contact
@@ -31,7 +31,7 @@ for lifting:
 Frames and units (SI: m, kg, s, N)
 ----------------------------------
 World = table frame: ``z`` up, the table top at ``z = 0``, the table centred on the origin. Hand
-frames are dg16m grasp frames (see :mod:`dataset_gen.gripper`: ``+x`` closing axis, ``+y``
+frames are dg16m grasp frames (see :mod:`dataset_gen.grasps.gripper`: ``+x`` closing axis, ``+y``
 approach axis, origin at the flange). The object's body frame is its object frame (the frame of
 its benchmark grasps).
 """
@@ -46,18 +46,21 @@ import numpy as np
 import trimesh
 from dm_control import mjcf
 
-from dataset_gen.checks import check_number
-from dataset_gen.gripper import PANDA, GripperModel, get_gripper
-from dataset_gen.objects import ConvexPart, GraspObject
-from dataset_gen.parameters import PAPER
+from dataset_gen.grasps.gripper import PANDA, GripperModel, get_gripper
+from dataset_gen.objects.grasp_object import ConvexPart, GraspObject
+from dg16m_core.checks import check_number
+from dg16m_core.parameters import PAPER
 from dg16m_env.physics.scene import (
     HAND_NAMES,
     OBJECT_BODY,
     OBJECT_CONTACTS_SENSOR,
     SceneError,
+    SceneIndices,
     SceneParameters,
     compile_model,
+    named_index,
     object_parts_or_error,
+    scene_indices,
     scene_model,
 )
 
@@ -177,61 +180,36 @@ def lift_model(
 
 
 @dataclass
-class LiftScene:
-    """A compiled lift scene with the indices the task needs.
+class LiftScene(SceneIndices):
+    """A compiled lift scene with the indices the task needs: :class:`SceneIndices`' (the hands
+    are free bodies welded to mocap targets; ``object_qvel``'s linear part is the body origin's,
+    world frame, its angular part in the body frame) and
 
     Attributes:
-        model: the compiled ``mujoco.MjModel``.
-        object_id: the object's id.
-        object_mass: kg.
-        object_body: body id of the object.
-        object_qpos: slice of ``qpos`` holding the object's free joint (pos (3), quat (4)).
-        object_qvel: slice of ``qvel`` holding its velocity (linear (3) of the body origin in the
-            world frame, then angular (3) in the body frame).
-        hand_bodies: (2,) body ids of the hands.
         hand_qpos: (2,) ``qpos`` addresses of the hands' free joints (pos (3), quat (4)).
         hand_qvel: (2,) ``qvel`` addresses of the hands' free joints.
         target_mocap: (2,) mocap ids of the hands' targets: always ``[0, 1]`` (the scene's only
             mocap bodies, so ``data.mocap_pos`` holds the targets in hand order).
-        finger_qpos: (2, 2) ``qpos`` addresses of each hand's finger joints (closing travel, m).
-        squeeze_actuators: (2,) actuator ids of the hands' squeeze motors (signed N per finger).
         finger_contacts: (2, 2) ``sensordata`` addresses of the contact counts between the
             object and finger ``i`` of hand ``k``.
         hand_contacts: (2,) ``sensordata`` addresses of the contact counts between the object
             and each hand (palm and fingers).
         object_contacts: ``sensordata`` address of the object's contact count (table included).
-        hand_geoms: per hand, the geom ids of palm and fingers.
-        object_geoms: geom ids of the object's parts.
         table_geom: geom id of the table.
-        gripper: the hand model.
-        params: the physical constants it was built with.
         gravity: m/s^2.
-        xml: the MJCF text. The compiled model also has the hands' ``body_gravcomp`` set to 1
-            (an attachment frame takes no ``gravcomp`` attribute in :mod:`dm_control.mjcf`).
+
+    The compiled model also has the hands' ``body_gravcomp`` set to 1 (an attachment frame takes
+    no ``gravcomp`` attribute in :mod:`dm_control.mjcf`).
     """
 
-    model: mujoco.MjModel
-    object_id: str
-    object_mass: float
-    object_body: int
-    object_qpos: slice
-    object_qvel: slice
-    hand_bodies: np.ndarray
     hand_qpos: np.ndarray
     hand_qvel: np.ndarray
     target_mocap: np.ndarray
-    finger_qpos: np.ndarray
-    squeeze_actuators: np.ndarray
     finger_contacts: np.ndarray
     hand_contacts: np.ndarray
     object_contacts: int
-    hand_geoms: tuple[np.ndarray, np.ndarray]
-    object_geoms: np.ndarray
     table_geom: int
-    gripper: GripperModel
-    params: SceneParameters
     gravity: float
-    xml: str
 
     def __repr__(self) -> str:  # the model and its XML are large: name what they hold
         model = self.model
@@ -259,22 +237,18 @@ def compile_lift_scene(
     gripper_model = get_gripper(gripper)
     root = lift_model(obj, gripper=gripper_model, params=params, parts=parts, gravity=gravity)
     model, xml = compile_model(root, obj.object_id)
+    indices = scene_indices(model, xml, obj.object_id, gripper_model, params)
 
     def named(kind: mujoco.mjtObj, name: str) -> int:
-        index = mujoco.mj_name2id(model, kind, name)
-        if index < 0:
-            raise SceneError(f"internal: expected {name!r} in the compiled lift scene, found none")
-        return int(index)
+        return named_index(model, kind, name)
 
     body, geom, sensor = (
         mujoco.mjtObj.mjOBJ_BODY,
         mujoco.mjtObj.mjOBJ_GEOM,
         mujoco.mjtObj.mjOBJ_SENSOR,
     )
-    joint = mujoco.mjtObj.mjOBJ_JOINT
-    object_body = named(body, OBJECT_BODY)
-    hand_bodies = np.array([named(body, f"{name}/") for name in HAND_NAMES])
-    model.body_gravcomp[hand_bodies] = 1.0  # the arms carry the hands (see LiftScene.xml)
+    hand_bodies = indices["hand_bodies"]
+    model.body_gravcomp[hand_bodies] = 1.0  # the arms carry the hands (see LiftScene)
     hand_joints = model.body_jntadr[hand_bodies]
     if np.any(model.jnt_type[hand_joints] != mujoco.mjtJoint.mjJNT_FREE):
         raise SceneError("internal: expected a free joint on each hand of the lift scene")
@@ -283,28 +257,11 @@ def compile_lift_scene(
     )
     if not np.array_equal(target_mocap, np.arange(len(HAND_NAMES))):  # the task relies on it
         raise SceneError(f"internal: expected the hand targets as mocap 0, 1, found {target_mocap}")
-    object_joint = named(joint, OBJECT_BODY)
-    address, dof = int(model.jnt_qposadr[object_joint]), int(model.jnt_dofadr[object_joint])
     return LiftScene(
-        model=model,
-        object_id=obj.object_id,
-        object_mass=float(model.body_mass[object_body]),
-        object_body=object_body,
-        object_qpos=slice(address, address + 7),
-        object_qvel=slice(dof, dof + 6),
-        hand_bodies=hand_bodies,
+        **indices,
         hand_qpos=model.jnt_qposadr[hand_joints].copy(),
         hand_qvel=model.jnt_dofadr[hand_joints].copy(),
         target_mocap=target_mocap,
-        finger_qpos=np.array(
-            [
-                [model.jnt_qposadr[named(joint, f"{name}/finger{i}")] for i in (0, 1)]
-                for name in HAND_NAMES
-            ]
-        ),
-        squeeze_actuators=np.array(
-            [named(mujoco.mjtObj.mjOBJ_ACTUATOR, f"{name}/squeeze") for name in HAND_NAMES]
-        ),
         finger_contacts=np.array(
             [
                 [model.sensor_adr[named(sensor, f"{name}_finger{i}_contacts")] for i in (0, 1)]
@@ -315,16 +272,8 @@ def compile_lift_scene(
             [model.sensor_adr[named(sensor, f"{name}_contacts")] for name in HAND_NAMES]
         ),
         object_contacts=int(model.sensor_adr[named(sensor, OBJECT_CONTACTS_SENSOR)]),
-        hand_geoms=tuple(  # type: ignore[arg-type]
-            np.array([named(geom, f"{name}/{part}") for part in ("palm", "finger0", "finger1")])
-            for name in HAND_NAMES
-        ),
-        object_geoms=np.flatnonzero(model.geom_bodyid == object_body),
         table_geom=named(geom, "table"),
-        gripper=gripper_model,
-        params=params,
         gravity=float(gravity),
-        xml=xml,
     )
 
 

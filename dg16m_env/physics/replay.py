@@ -37,8 +37,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from dataset_gen.atomic import atomic_path
-from dataset_gen.errors import Dg16mError
+from dg16m_core.atomic import atomic_path
+from dg16m_core.errors import Dg16mError
 from dg16m_env.physics.scene import Scene
 from dg16m_env.physics.trial_measures import analyse, grasp_centres, object_motion, object_states
 from dg16m_env.physics.trial_protocol import (
@@ -660,7 +660,7 @@ def write_strip(
         raise ReplayError(
             f"captions: expected one per frame ({len(frames)}), found {len(captions)}"
         )
-    from dataset_gen.figures import new_figure, save_png
+    from dg16m_core.figures import new_figure, save_png
 
     n = len(frames)
     columns = columns or (n if n <= 4 else 4)

@@ -4,15 +4,15 @@ Physics only; the trial protocol (phases, disturbances, success) lives in :mod:`
 
 The model is composed with :mod:`dm_control.mjcf`: a hand is its own MJCF model (palm, two finger
 bodies on slide joints, a tendon, an equality and a force actuator), attached twice to the scene
-on mocap frames. Geometry comes from :data:`dataset_gen.gripper.PANDA` (the same boxes the
+on mocap frames. Geometry comes from :data:`dataset_gen.grasps.gripper.PANDA` (the same boxes the
 generator checks collisions with), so nothing is written twice.
 
 Frames and units (SI: m, kg, s, N)
 ----------------------------------
-* World = the object frame of :class:`~dataset_gen.objects.GraspObject` at the start of a trial:
+* World = the object frame of :class:`~dataset_gen.objects.grasp_object.GraspObject` at the start of a trial:
   the object body starts at the origin with identity orientation.
 * Each hand body is a mocap body placed at a dg16m grasp pose (gripper frame -> object frame, see
-  :mod:`dataset_gen.gripper`): ``+x`` closing axis, ``+y`` approach axis.
+  :mod:`dataset_gen.grasps.gripper`): ``+x`` closing axis, ``+y`` approach axis.
 * Finger joints measure closing travel: 0 = fully open (inner faces ``max_opening`` apart),
   ``max_opening / 2`` = closed on the hand's axis.
 
@@ -29,7 +29,7 @@ Contact (measured on this machine, see DESIGN.md)
 (sliding and torsional friction), ``solref = [2 * timestep, 1]``, ``solimp = [0.95, 0.99, 0.001]``,
 finger armature. Each convex part of the object is its own geom (MuJoCo collides a mesh geom as
 its convex hull, so non-convex objects need their convex parts; see
-:mod:`dataset_gen.decomposition`).
+:mod:`dataset_gen.objects.decomposition`).
 """
 
 from __future__ import annotations
@@ -43,11 +43,11 @@ import mujoco
 import numpy as np
 from dm_control import mjcf
 
-from dataset_gen.checks import check_fields, check_number, known_fields
-from dataset_gen.errors import Dg16mError
-from dataset_gen.gripper import PANDA, GripperModel, get_gripper
-from dataset_gen.objects import ConvexPart, GraspObject
-from dataset_gen.parameters import PAPER
+from dataset_gen.grasps.gripper import PANDA, GripperModel, get_gripper
+from dataset_gen.objects.grasp_object import ConvexPart, GraspObject
+from dg16m_core.checks import check_fields, check_number, known_fields
+from dg16m_core.errors import Dg16mError
+from dg16m_core.parameters import PAPER
 
 HAND_NAMES = ("hand0", "hand1")
 """Attachment prefixes of the two hands (MJCF namespaces)."""
@@ -313,7 +313,7 @@ def object_parts_or_error(
     if not chosen:
         raise SceneError(
             f"{obj.object_id}: expected convex parts (procedural objects carry them; for a mesh "
-            "use dataset_gen.decomposition.object_parts), found none. A mesh geom collides as its "
+            "use dataset_gen.objects.decomposition.object_parts), found none. A mesh geom collides as its "
             "convex hull, which gives false successes on non-convex objects."
         )
     return chosen
@@ -390,8 +390,10 @@ def scene_model(
 
 
 @dataclass
-class Scene:
-    """A compiled scene with the indices the trial protocol needs.
+class SceneIndices:
+    """What every compiled scene of an object and two hands indexes: the trial scene
+    (:class:`Scene`) and the Lift task's (:class:`~dg16m_env.physics.lift_scene.LiftScene`) add
+    their own to these (:func:`scene_indices` finds them in a compiled model).
 
     Attributes:
         model: the compiled ``mujoco.MjModel``.
@@ -401,8 +403,7 @@ class Scene:
         object_qpos: slice of ``qpos`` holding the object's free joint (pos (3), quat (4)).
         object_qvel: slice of ``qvel`` holding the free joint's velocity (linear (3) in the
             world frame, then angular (3)), from ``model.jnt_dofadr``.
-        hand_bodies: (2,) body ids of the hands (mocap bodies).
-        hand_mocap: (2,) mocap ids of the hands.
+        hand_bodies: (2,) body ids of the hands.
         hand_geoms: per hand, the geom ids of palm and fingers.
         object_geoms: geom ids of the object's parts.
         finger_qpos: (2, 2) ``qpos`` addresses of each hand's finger joints.
@@ -419,7 +420,6 @@ class Scene:
     object_qpos: slice
     object_qvel: slice
     hand_bodies: np.ndarray
-    hand_mocap: np.ndarray
     hand_geoms: tuple[np.ndarray, np.ndarray]
     object_geoms: np.ndarray
     finger_qpos: np.ndarray
@@ -428,6 +428,18 @@ class Scene:
     params: SceneParameters
     xml: str
 
+
+@dataclass
+class Scene(SceneIndices):
+    """A compiled scene with the indices the trial protocol needs: :class:`SceneIndices`' (the
+    hands are mocap bodies) and
+
+    Attributes:
+        hand_mocap: (2,) mocap ids of the hands.
+    """
+
+    hand_mocap: np.ndarray
+
     def __repr__(self) -> str:  # the model and its XML are large: name what they hold
         model = self.model
         return (
@@ -435,6 +447,60 @@ class Scene:
             f"{len(self.object_geoms)} object geoms, {model.nbody} bodies, {model.ngeom} geoms, "
             f"timestep {model.opt.timestep:g} s, gripper {self.gripper.name!r})"
         )
+
+
+def named_index(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
+    """The id of the ``kind`` element ``name`` of a compiled scene (``SceneError`` if none)."""
+    index = mujoco.mj_name2id(model, kind, name)
+    if index < 0:
+        raise SceneError(f"internal: expected {name!r} in the compiled scene, found none")
+    return int(index)
+
+
+def scene_indices(
+    model: mujoco.MjModel,
+    xml: str,
+    object_id: str,
+    gripper: GripperModel,
+    params: SceneParameters,
+) -> dict[str, Any]:
+    """The :class:`SceneIndices` of a compiled scene, by field name.
+
+    Raises:
+        SceneError: an element of the object or the hands is missing (an internal error).
+    """
+    body, geom = mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM
+    joint, actuator = mujoco.mjtObj.mjOBJ_JOINT, mujoco.mjtObj.mjOBJ_ACTUATOR
+    object_body = named_index(model, body, OBJECT_BODY)
+    object_joint = named_index(model, joint, OBJECT_BODY)
+    address, dof = int(model.jnt_qposadr[object_joint]), int(model.jnt_dofadr[object_joint])
+    return {
+        "model": model,
+        "object_id": object_id,
+        "object_mass": float(model.body_mass[object_body]),
+        "object_body": object_body,
+        "object_qpos": slice(address, address + 7),
+        "object_qvel": slice(dof, dof + 6),
+        # dm_control names the attachment frame "<model>/"
+        "hand_bodies": np.array([named_index(model, body, f"{n}/") for n in HAND_NAMES]),
+        "hand_geoms": tuple(
+            np.array([named_index(model, geom, f"{n}/{g}") for g in ("palm", "finger0", "finger1")])
+            for n in HAND_NAMES
+        ),
+        "object_geoms": np.flatnonzero(model.geom_bodyid == object_body),
+        "finger_qpos": np.array(
+            [
+                [model.jnt_qposadr[named_index(model, joint, f"{n}/finger{i}")] for i in (0, 1)]
+                for n in HAND_NAMES
+            ]
+        ),
+        "squeeze_actuators": np.array(
+            [named_index(model, actuator, f"{n}/squeeze") for n in HAND_NAMES]
+        ),
+        "gripper": gripper,
+        "params": params,
+        "xml": xml,
+    }
 
 
 def compile_model(root: mjcf.RootElement, object_id: str) -> tuple[mujoco.MjModel, str]:
@@ -462,56 +528,8 @@ def compile_scene(
     gripper_model = get_gripper(gripper)
     root = scene_model(obj, gripper=gripper_model, params=params, parts=parts)
     model, xml = compile_model(root, obj.object_id)
-
-    def body_id(name: str) -> int:
-        return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
-
-    object_body = body_id(OBJECT_BODY)
-    hand_bodies = np.array([body_id(f"{name}/") for name in HAND_NAMES])
-    if np.any(hand_bodies < 0):  # dm_control names the attachment frame "<model>/"
-        raise SceneError(f"internal: hand bodies not found in the compiled scene ({hand_bodies})")
-    hand_geoms = tuple(
-        np.array(
-            [
-                mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{name}/{geom}")
-                for geom in ("palm", "finger0", "finger1")
-            ]
-        )
-        for name in HAND_NAMES
-    )
-    finger_qpos = np.array(
-        [
-            [
-                model.jnt_qposadr[
-                    mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{n}/finger{i}")
-                ]
-                for i in (0, 1)
-            ]
-            for n in HAND_NAMES
-        ]
-    )
-    joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, OBJECT_BODY)
-    address = int(model.jnt_qposadr[joint])
-    dof = int(model.jnt_dofadr[joint])
+    indices = scene_indices(model, xml, obj.object_id, gripper_model, params)
     return Scene(
-        model=model,
-        object_id=obj.object_id,
-        object_mass=float(model.body_mass[object_body]),
-        object_body=object_body,
-        object_qpos=slice(address, address + 7),
-        object_qvel=slice(dof, dof + 6),
-        hand_bodies=hand_bodies,
-        hand_mocap=np.array([model.body_mocapid[b] for b in hand_bodies]),
-        hand_geoms=hand_geoms,  # type: ignore[arg-type]
-        object_geoms=np.flatnonzero(model.geom_bodyid == object_body),
-        finger_qpos=finger_qpos,
-        squeeze_actuators=np.array(
-            [
-                mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{n}/squeeze")
-                for n in HAND_NAMES
-            ]
-        ),
-        gripper=gripper_model,
-        params=params,
-        xml=xml,
+        **indices,
+        hand_mocap=np.array([model.body_mocapid[b] for b in indices["hand_bodies"]]),
     )

@@ -28,8 +28,8 @@ from dataclasses import asdict, dataclass
 from importlib import metadata
 from typing import Any, Literal
 
-from dataset_gen.checks import check_integer, known_fields
-from dataset_gen.errors import Dg16mError
+from dg16m_core.checks import check_integer, known_fields
+from dg16m_core.errors import Dg16mError
 
 SimulatorName = Literal["mujoco", "warp"]
 SIMULATORS: tuple[str, ...] = ("mujoco", "warp")

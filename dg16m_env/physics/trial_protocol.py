@@ -62,11 +62,11 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from dataset_gen.checks import check_fields, known_fields
-from dataset_gen.errors import Dg16mError
-from dataset_gen.objects import is_rigid
-from dataset_gen.parameters import PAPER, PROTOCOL, DisturbanceProtocol
-from dataset_gen.robust import protocol_loads
+from dataset_gen.grasps.robust import protocol_loads
+from dataset_gen.objects.grasp_object import is_rigid
+from dg16m_core.checks import check_fields, known_fields
+from dg16m_core.errors import Dg16mError
+from dg16m_core.parameters import PAPER, PROTOCOL, DisturbanceProtocol
 from dg16m_env.physics.scene import Scene, quat_from_matrix
 
 __all__ = [
@@ -192,7 +192,7 @@ class TrialProtocol:
 
     def disturbances(self) -> DisturbanceProtocol:
         """The loads, durations, bounds and open-hand tolerance of this protocol, as the
-        generator-side modules (:mod:`dataset_gen.robust`, :mod:`dataset_gen.clearance`) take
+        generator-side modules (:mod:`dataset_gen.grasps.robust`, :mod:`dataset_gen.grasps.clearance`) take
         them."""
         return DisturbanceProtocol(
             **{f.name: getattr(self, f.name) for f in fields(DisturbanceProtocol)}
@@ -383,7 +383,7 @@ def _initial_data(scene: Scene) -> mujoco.MjData:
 
 
 HAND_PARTS = ("palm", "finger0", "finger1")
-"""The geoms of a hand, in the order of :attr:`~dg16m_env.physics.scene.Scene.hand_geoms`."""
+"""The geoms of a hand, in the order of :attr:`~dg16m_env.physics.scene.SceneIndices.hand_geoms`."""
 
 
 def _open_hand_depths(

@@ -26,10 +26,10 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.checks import check_integer
-from dataset_gen.errors import Dg16mError
-from dataset_gen.objects import GraspObject
-from dataset_gen.sources import object_seed
+from dataset_gen.objects.grasp_object import GraspObject
+from dataset_gen.sources.object_source import object_seed
+from dg16m_core.checks import check_integer
+from dg16m_core.errors import Dg16mError
 
 #: Points in an observation's cloud unless asked otherwise.
 DEFAULT_POINTS = 2048

@@ -332,7 +332,7 @@ def submission_from_predictor(
         BenchmarkError: an unreadable benchmark, a mesh object without ``mesh_root``.
         ObservationError: a bad ``n_points`` or ``seed``.
     """
-    from dataset_gen.checks import check_integer
+    from dg16m_core.checks import check_integer
     from dg16m_env.benchmark.ref import load_benchmark_ref
     from dg16m_env.subjects.observation import ObservationError
     from dg16m_env.subjects.submission import EMBEDDED

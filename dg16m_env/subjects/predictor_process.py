@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dataset_gen.errors import Dg16mError
+from dg16m_core.errors import Dg16mError
 
 if TYPE_CHECKING:
     from multiprocessing.process import BaseProcess
@@ -393,15 +393,19 @@ def _on_sigterm(owner: int) -> Callable[[int, Any], None]:
     return handler
 
 
-def _child_main(
-    conn: Connection,
-    target: str,
-    path: tuple[str, ...],
-    memory_limit_mb: int,
-    max_grasps: int,
-    workdir: str,
-    start_method: str | None = None,
-) -> None:
+@dataclass(frozen=True)
+class _ChildJob:
+    """What a child runs: the target and its import path, its memory limit, the most dual grasps
+    an answer may hold, and the folder of its results."""
+
+    target: str
+    path: tuple[str, ...]
+    memory_limit_mb: int
+    max_grasps: int
+    workdir: str
+
+
+def _child_main(conn: Connection, job: _ChildJob, start_method: str | None = None) -> None:
     """The child: set limits, import the target, then answer ``(index, observation)`` messages
     until ``None`` or the end of the pipe (results in ``workdir/<index>.npz``); SIGTERM ends it
     normally (:class:`_Stopped`).
@@ -415,21 +419,15 @@ def _child_main(
     if start_method is not None:
         multiprocessing.set_start_method(start_method, force=True)
     with contextlib.suppress(_Stopped):
-        _serve(conn, target, path, memory_limit_mb, max_grasps, workdir)
+        _serve(conn, job)
 
 
-def _serve(
-    conn: Connection,
-    target: str,
-    path: tuple[str, ...],
-    memory_limit_mb: int,
-    max_grasps: int,
-    workdir: str,
-) -> None:
+def _serve(conn: Connection, job: _ChildJob) -> None:
     """:func:`_child_main`'s work: the import, then the calls."""
+    target, memory_limit_mb, max_grasps = job.target, job.memory_limit_mb, job.max_grasps
     try:
         _set_limits(memory_limit_mb)
-        predict = load_target(target, path)
+        predict = load_target(target, job.path)
         if not callable(predict):
             raise PredictorError(
                 f"target {target!r}: expected a callable, found {type(predict).__name__}"
@@ -459,7 +457,7 @@ def _serve(
         try:
             poses, scores = _check_grasps(*_grasp_arrays(value), max_grasps)
             arrays = {"poses": poses} if scores is None else {"poses": poses, "scores": scores}
-            np.savez(Path(workdir) / f"{index}.npz", allow_pickle=False, **arrays)
+            np.savez(Path(job.workdir) / f"{index}.npz", allow_pickle=False, **arrays)
         except _OutputError as exc:
             _send(conn, {"kind": "error", "index": index, "message": str(exc)})
             continue
@@ -511,15 +509,15 @@ class _Worker:
         """
         ctx = get_context("spawn")
         parent_conn, child_conn = ctx.Pipe(duplex=True)
-        args = (
-            child_conn,
+        job = _ChildJob(
             self.spec.target,
             self.spec.path,
             self.spec.memory_limit_mb,
             self.max_grasps,
             str(self.workdir),
-            multiprocessing.get_start_method(),  # the child's own default becomes "spawn"
         )
+        # the parent's default start method: the child's own default becomes "spawn"
+        args = (child_conn, job, multiprocessing.get_start_method())
         # Not a daemon: a daemonic process may not start processes (data loaders, pools).
         process = ctx.Process(target=_child_main, args=args, name="dg16m-predictor", daemon=False)
         started = time.monotonic()

@@ -39,7 +39,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from dataset_gen.errors import Dg16mError
+from dg16m_core.errors import Dg16mError
 
 __all__ = [
     "EMBEDDED",

@@ -14,7 +14,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from dataset_gen.atomic import atomic_path
+from dg16m_core.atomic import atomic_path
 from dg16m_env.subjects.submission import (
     EMBEDDED,
     FORMAT,
@@ -201,7 +201,7 @@ def submission_from_dg16m(
         GraspFileError: a file that is not a valid DG16M file.
     """
     from dataset_gen.io import read_dg16m
-    from dataset_gen.sources import object_seed
+    from dataset_gen.sources.object_source import object_seed
     from dg16m_env.benchmark.arms import choose_file_pairs
     from dg16m_env.benchmark.sources import file_poses
 

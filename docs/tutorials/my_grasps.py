@@ -5,7 +5,7 @@ from typing import Any
 
 import numpy as np
 
-from dataset_gen.gripper import PANDA
+from dataset_gen.grasps.gripper import PANDA
 
 
 def predict(observation: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,69 @@
+"""The board's standings as JSON (``GET /api/board``), a page of rows at a time, and the
+page query (``?page=N&limit=M``) the HTML board shares."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+from urllib.parse import urlencode
+
+from starlette.concurrency import run_in_threadpool
+from starlette.requests import Request
+from starlette.responses import Response
+from starlette.routing import Route
+
+from ..query_checks import check_query, query_number
+from ..views import PAGE_ROWS, board_view
+from .answers import answer, json_answer
+
+if TYPE_CHECKING:
+    from ..board import Board
+
+
+def page_query(request: Request) -> tuple[int, int]:
+    """The request's page number and size (``?page=N&limit=M``; defaults 1 and
+    :data:`~leaderboard.views.PAGE_ROWS`; bounds are the view's).
+
+    Raises:
+        InvalidParameterError: (422) another key, a repeated one, or not a number.
+    """
+    params = request.query_params
+    check_query(params, {"page", "limit"})
+    return query_number(params, "page", 1), query_number(params, "limit", PAGE_ROWS)
+
+
+def page_href(path: str, limit: int) -> Callable[[int], str]:
+    """The link to page ``number`` of ``path`` with page size ``limit`` (left out when it is
+    the default)."""
+
+    def href(number: int) -> str:
+        query = {"page": number} if limit == PAGE_ROWS else {"page": number, "limit": limit}
+        return f"{path}?{urlencode(query)}"
+
+    return href
+
+
+class StandingsRoutes:
+    """``GET /api/board``: the board view (public results, a page of rows per evaluator) with
+    links to the previous and next pages."""
+
+    def __init__(self, board: Board):
+        self.board = board
+
+    async def api_board(self, request: Request) -> Response:
+        """The board view as JSON (built and encoded in a worker thread)."""
+        page, limit = page_query(request)
+
+        def build() -> Response:
+            view = board_view(self.board, page=page, limit=limit)
+            href = page_href("/api/board", limit)
+            number, pages = view["page"]["number"], view["page"]["pages"]
+            view["page"]["prev"] = href(number - 1) if number > 1 else None
+            view["page"]["next"] = href(number + 1) if number < pages else None
+            return json_answer(view)
+
+        return await run_in_threadpool(build)
+
+    def routes(self) -> list[Route]:
+        """Its routes, each answering its refusals and board errors."""
+        return [Route("/api/board", answer(self.api_board))]
