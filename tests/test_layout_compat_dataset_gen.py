@@ -1,8 +1,6 @@
 """The old import paths of ``dataset_gen`` (before the kernel ``dg16m_core`` and the folders)
-still work for one release and warn, with the mechanism of ``dg16m_core.compat``.
-
-Each old module name is dropped from ``sys.modules`` before it is imported, so the warning is
-seen on every run of the test (an import is cached after the first)."""
+still work for one release and warn, with the mechanism of ``dg16m_core.compat`` (tested as
+``tests/test_layout_compat.py`` tests ``dg16m_env``'s, with its ``fresh_import``)."""
 
 from __future__ import annotations
 
@@ -12,18 +10,11 @@ import sys
 import warnings
 
 import pytest
+from test_layout_compat import fresh_import
 
 import dataset_gen  # noqa: F401  (installs the finder of the old paths)
 from dataset_gen._compat import MOVED_MODULES, RENAMED_MODULES
 from dg16m_core.compat import REMOVED_IN
-
-
-def fresh_import(name: str) -> object:
-    sys.modules.pop(name, None)
-    parent, _, leaf = name.rpartition(".")
-    if parent in sys.modules and leaf in vars(sys.modules[parent]):
-        delattr(sys.modules[parent], leaf)
-    return importlib.import_module(name)
 
 
 @pytest.mark.parametrize("old", sorted(MOVED_MODULES))
