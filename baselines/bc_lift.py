@@ -189,10 +189,10 @@ def dagger_rollouts(
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """The visited states whose expert phase is in ``phases`` (None: all), the expert's actions
     there, and the share of episodes that succeeded."""
-    from tqdm import tqdm
+    from dg16m_core.progress import progress_bar
 
     states, labels, successes = [], [], 0
-    for seed in tqdm(seeds, desc=f"DAgger rollouts (beta {beta:.2f})", unit="episode"):
+    for seed in progress_bar(seeds, desc=f"DAgger rollouts (beta {beta:.2f})", unit="episode"):
         obs, _ = env.reset(seed=seed)
         while True:
             phase, label = expert.decide(obs)

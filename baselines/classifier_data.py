@@ -30,11 +30,11 @@ from typing import Any
 
 import numpy as np
 import trimesh
-from tqdm import tqdm
 
 from dataset_gen.io import read_dg16m
 from dataset_gen.sources.object_source import object_seed
 from dg16m_core.errors import Dg16mError
+from dg16m_core.progress import progress_bar
 from dg16m_env.benchmark.sources import file_poses
 from dg16m_env.subjects.observation import DEFAULT_POINTS, surface_points
 
@@ -163,7 +163,7 @@ def load_generated(
     files = grasp_files(folder)[:limit]
     return [
         load_object(f, n_points=n_points, seed=seed, mesh_root=mesh_root)
-        for f in tqdm(files, desc="objects", unit="obj", disable=not progress)
+        for f in progress_bar(files, desc="objects", unit="obj", enabled=progress)
     ]
 
 

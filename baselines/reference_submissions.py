@@ -34,7 +34,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from baselines.pairing_baselines import PAIRING_STRATEGIES, BaselineError, PairingBaseline
 from baselines.submission_arguments import DEFAULT_STRATEGIES, add_submission_arguments
@@ -42,6 +41,7 @@ from dataset_gen.io import package_version
 from dataset_gen.pipeline.parallel import check_backend, run_tasks
 from dg16m_core.checks import check_integer
 from dg16m_core.errors import Dg16mError
+from dg16m_core.progress import progress_bar
 from dg16m_env.benchmark.model import SOURCES, Benchmark, BenchmarkObject
 from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
 from dg16m_env.subjects.observation import object_observation
@@ -201,8 +201,8 @@ def write_reference_submissions(
     if baselines:
         root = str(ref.mesh_root) if ref.mesh_root is not None else None
         tasks = run_tasks(predict_object, bench.objects, (root, baselines), workers=workers)
-        for item, out in tqdm(
-            tasks, total=len(bench.objects), desc="baselines", disable=not progress
+        for item, out in progress_bar(
+            tasks, total=len(bench.objects), desc="baselines", unit="object", enabled=progress
         ):
             for name, prediction in out.items():
                 results[name][item.object_id] = prediction

@@ -324,7 +324,8 @@ def main() -> None:
     args = parse_args(Args, __doc__.split("\n\n")[0])
     import gymnasium as gym
     import torch
-    from tqdm import tqdm
+
+    from dg16m_core.progress import progress_bar
 
     if args.env_id not in ENV_IDS:
         raise SystemExit(f"--env-id: expected one of {ENV_IDS}, found {args.env_id!r}")
@@ -357,7 +358,7 @@ def main() -> None:
     state = {"inputs": policy.inputs(obs), "done": torch.zeros(n), "episode_return": np.zeros(n)}
     curve: list[dict[str, float]] = []
     timesteps = 0
-    bar = tqdm(range(iterations), desc="residual PPO", unit="iteration")
+    bar = progress_bar(range(iterations), desc="residual PPO", unit="iteration")
     for iteration in bar:
         finished_success, finished_return = collect(envs, policy, buffer, state, args.reward_scale)
         timesteps += n * t

@@ -109,7 +109,8 @@ def save_hands(path: Path, specs: list[tuple[str, int, int]], hands: list) -> No
 
 def main(args: Args) -> None:
     import torch
-    from tqdm import tqdm
+
+    from dg16m_core.progress import progress_bar
 
     families = FAMILIES[:N_BENCHMARK_FAMILIES]
     specs = [
@@ -120,7 +121,9 @@ def main(args: Args) -> None:
     if hands is None:
         start = time.perf_counter()
         with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
-            hands = list(tqdm(pool.imap(object_hands, specs), total=len(specs), desc="objects"))
+            hands = list(
+                progress_bar(pool.imap(object_hands, specs), total=len(specs), desc="objects")
+            )
         print(f"features of {len(hands)} objects in {time.perf_counter() - start:.0f} s")
         if args.features:
             save_hands(Path(args.features), specs, hands)

@@ -24,9 +24,9 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from tqdm import tqdm
 
 from baselines.pairing_baselines import farthest_baseline, force_closure_baseline, random_baseline
+from dg16m_core.progress import progress_bar
 from dg16m_env.benchmark import load_benchmark_ref
 from dg16m_env.envs.objects import BenchmarkObjects
 from dg16m_env.subjects.observation import object_observation
@@ -66,7 +66,7 @@ def main() -> None:
     for predict in BASELINES.values():
         predict(warm)
     seconds = {name: np.zeros(len(ids)) for name in BASELINES}
-    for i, object_id in enumerate(tqdm(ids, desc="objects", unit="object")):
+    for i, object_id in enumerate(progress_bar(ids, desc="objects", unit="object")):
         observation = object_observation(objects.load(object_id))
         for name, predict in BASELINES.items():
             start = time.perf_counter()

@@ -19,6 +19,7 @@ module                   what it holds
 ``distribution``         the installed distribution's name and version
 ``parameters``           the DG16M paper's parameters (``PAPER``), defined once
 ``figures``              matplotlib figures without pyplot, written as PNG
+``progress``             progress bars: tqdm on a terminal, a plain line every few seconds in a log
 ``compat``               old import paths kept for one release (the mechanism; tables live in
                          each package's ``_compat``)
 =======================  =====================================================================

@@ -95,7 +95,7 @@ def test_making_v0_warns_that_it_is_deprecated_and_names_its_reward_flaw(bench_p
     assert ours[0].filename == __file__
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        gym.make(f"{NAMESPACE}/DualGraspLift-v2", benchmark=bench_path).close()
+        gym.make(f"{NAMESPACE}/DualGraspLift-v3", benchmark=bench_path).close()
 
 
 def _env(bench_path: Path, **kwargs: Any) -> gym.Env:

@@ -36,7 +36,7 @@ def two(tmp_path_factory) -> Path:
 
 
 def _interrupt_gsr(monkeypatch) -> None:
-    def interrupted(self, subject):
+    def interrupted(self, subject, **options):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(gsr.GraspSuccessRate, "evaluate", interrupted)
@@ -95,7 +95,7 @@ def test_resume_of_a_missing_file_runs_everything(two, tmp_path, capsys):
     out = tmp_path / "new.json"
     argv = ["evaluate", str(two), "--evaluators", "fce", "--out", str(out), "--resume", *FAST]
     assert main(argv) == 0
-    assert "nothing to resume" in capsys.readouterr().out
+    assert "no finished evaluators" in capsys.readouterr().out
     assert list(read_results(out)) == ["fce"]
 
 

@@ -146,12 +146,6 @@ def test_a_predictor_runs_only_on_the_subset(tmp_path, capsys, recwarn):
     assert not [w for w in recwarn if "expected dual grasps for all" in str(w.message)]
 
 
-def test_policy_runs_take_no_subset(capsys):
-    argv = ["evaluate", "--policy", "x.py:f", "--env-id", "x", "--limit", "2"]
-    assert main(argv) == 2
-    assert "found --policy" in capsys.readouterr().err
-
-
 def test_the_leaderboard_refuses_a_partial_result(ref, tmp_path):
     from leaderboard.board import Board, BoardError
     from leaderboard.queue import NewSubmission

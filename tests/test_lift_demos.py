@@ -212,7 +212,8 @@ def test_v1_demonstrations_are_collected_and_replayed_on_v1(tmp_path: Path) -> N
     assert dataset.spec.env_spec.id == ENV_IDS[0] == "dg16m_env/DualGraspLift-v1"
     assert demos_metadata(dataset)["env_id"] == ENV_IDS[0]
     assert replay_lift_demo(dataset, 1).identical
-    assert ENV_ID == ENV_IDS[-1] == "dg16m_env/DualGraspLift-v2"
+    assert ENV_ID == ENV_IDS[1] == "dg16m_env/DualGraspLift-v2"
+    assert ENV_IDS[-1] == "dg16m_env/DualGraspLift-v3"
 
 
 def test_command_line(
@@ -229,7 +230,7 @@ def test_command_line(
     assert main(["demos", "info", folder]) == 0
     text = capsys.readouterr().out
     assert "episodes    2, 40 steps" in text
-    assert "on dg16m_env/DualGraspLift-v2" in text  # the default env: the latest version
+    assert "on dg16m_env/DualGraspLift-v2" in text  # the default env
     assert "Wilson 95%" in text
 
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(out))

@@ -1,5 +1,6 @@
-"""DualGraspLift-v1 (:mod:`dg16m_env.envs.lift.v1`) and v2 (the same task on 5 ms
-physics steps, :mod:`dg16m_env.envs.lift.v2`): success is the best return in
+"""DualGraspLift-v1 (:mod:`dg16m_env.envs.lift.v1`), v2 (the same task on 5 ms
+physics steps, :mod:`dg16m_env.envs.lift.v2`) and v3 (v2 whose success needs the grasp held,
+:mod:`dg16m_env.envs.lift.v3`): success is the best return in
 every reward mode (seed for seed against a policy that lifts only 5 cm and hovers), the reward
 modes agree with each other, ``step()`` after the end is refused, each observation mode passes
 Gymnasium's checker, and a restored state gives the same steps bit for bit."""
@@ -21,13 +22,13 @@ from dg16m_env.envs.lift.reward import MAX_STEP_REWARD, REWARD_MODES
 from dg16m_env.envs.lift.task import FAILURES
 from dg16m_env.envs.lift.v1 import DualGraspLiftV1Env
 
-# v1 is made on purpose: Gymnasium's note that a newer version (v2) is registered is expected.
+# v1 and v2 are made on purpose: Gymnasium's note that a newer version is registered is expected.
 pytestmark = pytest.mark.filterwarnings(
-    "ignore:.*DualGraspLift-v1 is out of date.*:DeprecationWarning"
+    "ignore:.*DualGraspLift-v[12] is out of date.*:DeprecationWarning"
 )
 
 LIFT_V1 = "dg16m_env/DualGraspLift-v1"
-LIFT_IDS = (LIFT_V1, "dg16m_env/DualGraspLift-v2")
+LIFT_IDS = (LIFT_V1, "dg16m_env/DualGraspLift-v2", "dg16m_env/DualGraspLift-v3")
 SEEDS = (42, 3)
 """Procedural-benchmark episodes the feedback expert completes (checked in the test)."""
 
@@ -152,11 +153,13 @@ def test_each_observation_mode_passes_check_env(env_id: str, obs_mode: str) -> N
     if obs_mode == "state_dict":
         assert list(obs) == [name for name, _, _, _ in STATE_LAYOUT]
     if obs_mode == "pointcloud":
-        assert obs["points"].shape == (64, 3)
+        flat = env.unwrapped.version.flat_cloud  # v3: (3 n,) vectors, the same numbers
+        assert obs["points"].shape == obs["normals"].shape == ((192,) if flat else (64, 3))
         assert obs["mask"].sum() > 0
         state = obs["state"]
         # the cloud is carried with the object: points stay near the object's position
-        near = obs["points"][obs["mask"] > 0] - state[STATE_SLICES["object_position"]]
+        points = obs["points"].reshape(-1, 3)
+        near = points[obs["mask"] > 0] - state[STATE_SLICES["object_position"]]
         assert np.abs(near).max() < 2.0
     env.close()
 

@@ -5,6 +5,7 @@ functions of ``bench/generate_object.py``): the same hits, faces and distances, 
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -68,7 +69,17 @@ def test_first_hits_match_trimesh(name: str, mesh: trimesh.Trimesh) -> None:
     for max_distance in (0.08, 0.3, float(np.linalg.norm(mesh.extents)) * 2):
         hits = segment_hits(mesh, origins, directions, max_distance)
         got = nearest_hits(origins, directions, max_distance, *hits)
-        want = BENCH.reference_first_hits(mesh, origins, directions, max_distance)
+        with warnings.catch_warnings():
+            # trimesh's barycentric coordinates (trimesh/triangles.py, points_to_barycentric)
+            # divide by zero on the couch's degenerate (zero-area) triangles; those candidates
+            # come out NaN and are dropped by trimesh itself, so the reference hits are intact
+            warnings.filterwarnings(
+                "ignore", "divide by zero encountered", RuntimeWarning, "trimesh.triangles"
+            )
+            warnings.filterwarnings(
+                "ignore", "invalid value encountered", RuntimeWarning, "trimesh.triangles"
+            )
+            want = BENCH.reference_first_hits(mesh, origins, directions, max_distance)
         hit = np.isfinite(want[0])
         assert hit.sum() > 1000, name  # the rays do hit
         np.testing.assert_array_equal(np.isfinite(got[0]), hit)
@@ -79,7 +90,7 @@ def test_first_hits_match_trimesh(name: str, mesh: trimesh.Trimesh) -> None:
             np.testing.assert_array_equal(got[1], want[1])
         else:
             assert differ.sum() <= 0.001 * hit.sum(), (name, int(differ.sum()))
-            assert np.all(np.abs(got[0] - want[0])[differ] < 1e-8)
+            assert np.all(np.abs(got[0][differ] - want[0][differ]) < 1e-8)  # hits: finite
 
 
 def test_candidates_hold_every_hit_within_the_segment() -> None:

@@ -197,10 +197,15 @@ def test_strip_and_gif_are_written(tmp_path: Path, monkeypatch: pytest.MonkeyPat
     frames = [rng.integers(0, 255, (48, 64, 3), dtype=np.uint8) for _ in range(6)]
     captions = [f"t={i / 10:.2f} s  close  slip 0.0 mm" for i in range(6)]
     strip = write_strip(frames, captions, tmp_path / "strip.png", title="row 0")
-    with Image.open(strip) as image:
+    with Image.open(strip) as image:  # 6 frames: 3 columns x 2 rows, no empty cell
         assert image.format == "PNG"
-        assert image.width >= 4 * 64
+        assert 3 * 64 <= image.width < 4 * 64
         assert image.height >= 2 * 48
+    eight = write_strip(frames + frames[:2], captions + captions[:2], tmp_path / "eight.png")
+    with Image.open(eight) as image:  # 8 frames: 4 x 2
+        assert 4 * 64 <= image.width < 5 * 64
+        assert 2 * 48 <= image.height < 3 * 48 + 100
+    eight.unlink()
     gif = write_gif(frames, tmp_path / "anim.gif", fps=5, captions=captions)
     with Image.open(gif) as image:
         assert image.format == "GIF"
@@ -515,7 +520,54 @@ def test_frames_have_a_light_background(can_render: None, scene: Scene, bench: B
     frames, _ = trial_frames(
         scene, bench.poses[row], bench.trials.protocol, n_frames=2, width=160, height=120
     )
-    for frame in frames:
-        corners = frame[[0, 0, -1, -1], [0, -1, 0, -1]].astype(float) / 255.0
-        assert corners.min() > min(BACKGROUND) - 0.1, corners
+    corners = frames[0][[0, 0, -1, -1], [0, -1, 0, -1]].astype(float) / 255.0
+    assert corners.min() > min(BACKGROUND) - 0.1, corners  # the view of both hands
+    for frame in frames:  # close-ups of hands far apart may be filled by the object
+        assert (frame.max(axis=2) < 40).mean() < 0.02  # not drawn on black
         assert frame.std() > 5  # the object and hands are drawn over it
+
+
+def test_strip_frames_are_as_many_as_asked_and_show_the_largest_slip(
+    scene: Scene, bench: Benchmark
+) -> None:
+    """Issue 56: a strip of 8 holds 8 frames (a 4 x 2 grid, no empty cell): the start, the
+    ends of close and gravity, the largest slip (its caption says so) unless its phase already
+    has a frame, then ends of other phases; the slip curve under it marks every frame."""
+    from dg16m_env.physics.replay import Replay, caption, largest_slip_step, slip_curve
+
+    for row in np.flatnonzero(bench.trials.status != TrialStatus.INVALID)[:3]:
+        stepped = step_trial(scene, bench.poses[row], bench.trials.protocol)
+        steps = frame_steps(stepped, 8)
+        assert len(steps) == 8, steps
+        assert stepped.plan.close_end in steps
+        gravity_end = int(np.searchsorted(stepped.plan.phase, 1, side="right"))
+        if gravity_end <= stepped.end and stepped.first_out is None:
+            assert gravity_end in steps
+        largest = largest_slip_step(stepped)
+        assert largest is not None
+        shown = {stepped.phase_at(k) for k in steps[1:]}
+        assert stepped.phase_at(largest) in shown
+        captions = [caption(stepped, k) for k in steps]
+        assert sum("(max)" in c for c in captions) == (largest in steps), captions
+        curve = slip_curve(Replay(stepped, [], captions, steps))
+        assert curve is not None
+        assert len(curve["frames_t"]) == len(steps)
+        assert curve["slip_mm"].max() == pytest.approx(1e3 * stepped.slip[: stepped.end + 1].max())
+
+
+def test_hands_far_apart_get_close_ups(scene: Scene, bench: Benchmark) -> None:
+    """Issue 56: hands more than CLOSE_UP_SPLIT apart get one close-up camera each, on its
+    grasp centre; hands close together keep one view."""
+    from dg16m_env.physics.replay import CLOSE_UP_DISTANCE, CLOSE_UP_SPLIT, hand_close_ups
+    from dg16m_env.physics.trial_measures import grasp_centres
+
+    for row in range(bench.n):
+        centres = grasp_centres(scene, bench.poses[row][None])[0]
+        cameras = hand_close_ups(scene, bench.poses[row])
+        if np.linalg.norm(centres[1] - centres[0]) <= CLOSE_UP_SPLIT:
+            assert cameras is None
+            continue
+        assert cameras is not None
+        for camera, centre in zip(cameras, centres, strict=True):
+            np.testing.assert_allclose(camera["lookat"], centre)
+            assert camera["distance"] == CLOSE_UP_DISTANCE

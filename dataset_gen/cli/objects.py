@@ -416,10 +416,9 @@ def _objects_repair_arguments(command: argparse.ArgumentParser) -> None:
 
 
 def _objects_repair(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from dataset_gen.real.own_meshes import entry_line, repair_meshes, repair_summary
     from dataset_gen.real.repair import RepairParameters
+    from dg16m_core.progress import progress_write
 
     if args.target_extent is not None:
         check_number("--target-extent", args.target_extent, error=MeshError)
@@ -431,7 +430,7 @@ def _objects_repair(args: argparse.Namespace) -> int:
         raise MeshError(f"--{str(exc).replace('_', '-')}") from None
 
     def report(object_id: str, entry: Any, kept: bool) -> None:
-        tqdm.write(entry_line(object_id, entry, kept))
+        progress_write(entry_line(object_id, entry, kept))
 
     run = repair_meshes(
         args.inputs,
@@ -472,10 +471,9 @@ def _objects_repair(args: argparse.Namespace) -> int:
 
 
 def _objects_make(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from dataset_gen.sources import procedural
     from dataset_gen.sources.library import write_procedural_library
+    from dg16m_core.progress import progress_bar
 
     default_count = procedural.BENCHMARK_SIZE if args.split == "benchmark" else DEFAULT_TRAIN_COUNT
     count = args.count if args.count is not None else default_count
@@ -483,7 +481,7 @@ def _objects_make(args: argparse.Namespace) -> int:
         raise MeshError(f"--count: expected a positive number of objects, found {count}")
     mass = check_number("--mass", args.mass, error=MeshError)
     specs = procedural.object_specs(count, seed=args.seed, split=args.split)  # ProceduralError
-    with tqdm(total=len(specs), unit="obj", desc="objects", disable=None) as bar:
+    with progress_bar(total=len(specs), unit="obj", desc="objects") as bar:
         manifest = write_procedural_library(
             args.out, specs, mass=mass, on_object=lambda _: bar.update()
         )

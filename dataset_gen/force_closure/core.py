@@ -481,9 +481,9 @@ def _progress(enabled: bool, total: int) -> Iterator[Callable[[int], None]]:
     if not enabled:
         yield lambda _: None
         return
-    from tqdm import tqdm
+    from dg16m_core.progress import progress_bar
 
-    bar = tqdm(total=total, unit="pair", desc="force closure", smoothing=0.1)
+    bar = progress_bar(total=total, unit="pair", desc="force closure", smoothing=0.1)
     try:
         yield lambda count: bar.update(count)
     finally:

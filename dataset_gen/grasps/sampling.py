@@ -222,7 +222,7 @@ def sample_antipodal_grasps(
             (:mod:`dataset_gen.grasps.clearance`: no box deeper than
             ``PROTOCOL.invalid_penetration``), so it is valid in simulation; the generator and
             the benchmark pass a mesh's CoACD parts. ``None``: the exact-mesh test only.
-        progress: show a progress bar (tqdm) of the grasps found.
+        progress: show a progress bar (dg16m_core.progress) of the grasps found.
 
     Returns:
         :class:`SingleArmGrasps` with ``min(n_grasps, found)`` grasps, in a deterministic order
@@ -401,13 +401,13 @@ class _Sampler:
         batch_size: int,
         progress: bool,
     ) -> SingleArmGrasps:
-        from tqdm import tqdm
+        from dg16m_core.progress import progress_bar
 
         found: list[_Found] = []
         total = 0
         drawn = 0
-        with tqdm(
-            total=n_grasps, unit="grasp", desc="sampling", disable=not progress, leave=False
+        with progress_bar(
+            total=n_grasps, unit="grasp", desc="sampling", enabled=progress, leave=False
         ) as bar:
             while total < n_grasps and drawn < max_candidates:
                 size = min(batch_size, max_candidates - drawn)

@@ -277,9 +277,9 @@ def run_resumable(
     todo = [item for item in items if not finished(item.object_id)]
     bar = None
     if progress:
-        from tqdm import tqdm
+        from dg16m_core.progress import progress_bar
 
-        bar = tqdm(
+        bar = progress_bar(
             total=len(items),
             initial=len(items) - len(todo),
             unit="object",

@@ -151,16 +151,57 @@ def _quality_figure(stats: DatasetStats) -> Figure:
     return fig
 
 
+#: Up to this many objects the figure names each one; beyond, it shows their distribution.
+PASSES_LABELLED_OBJECTS = 40
+#: The objects with the fewest passing pairs named beside the distribution of a large dataset.
+PASSES_FEWEST = 20
+
+
 def _passes_figure(stats: DatasetStats) -> Figure:
-    fig, ax = _figure(max(6, 0.25 * len(stats.objects)), 4)
-    x = np.arange(len(stats.objects))
-    ax.bar(x, stats.passing, color="tab:green", label="passing")
-    ax.bar(x, stats.failing, bottom=stats.passing, color="tab:red", label="failing")
-    ax.set_xticks(x, stats.objects, rotation=90, fontsize=6)
-    ax.set_ylabel("stored pairs")
-    ax.set_title("Stored pairs per object")
-    ax.legend()
+    """Stored passing and failing pairs per object: one labelled horizontal bar per object
+    (readable names) up to :data:`PASSES_LABELLED_OBJECTS` objects; beyond, the distribution of
+    pairs per object beside the :data:`PASSES_FEWEST` objects with the fewest passing pairs."""
+    count = len(stats.objects)
+    if count <= PASSES_LABELLED_OBJECTS:
+        fig, ax = _figure(6.5, max(2.5, 1.2 + 0.28 * count))
+        _pair_bars(ax, stats.objects, stats.passing, stats.failing)
+        ax.set_title(f"Stored pairs per object ({count} objects)")
+        return fig
+    fig = new_figure(12, max(4.5, 1.2 + 0.28 * PASSES_FEWEST))
+    left, right = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
+    top = max(max(stats.passing, default=0), max(stats.failing, default=0), 1)
+    bins = np.linspace(0, top, 31)
+    left.hist(stats.passing, bins=bins, alpha=0.6, color="tab:green", label="passing")
+    left.hist(stats.failing, bins=bins, alpha=0.6, color="tab:red", label="failing")
+    left.set_xlabel("stored pairs of one object")
+    left.set_ylabel("objects")
+    left.set_title(f"Stored pairs per object ({count} objects)")
+    left.legend()
+    fewest = sorted(range(count), key=lambda i: (stats.passing[i], stats.objects[i]))[
+        :PASSES_FEWEST
+    ]
+    _pair_bars(
+        right,
+        [stats.objects[i] for i in fewest],
+        [stats.passing[i] for i in fewest],
+        [stats.failing[i] for i in fewest],
+    )
+    right.set_title(f"The {len(fewest)} objects with the fewest passing pairs")
+    fig.tight_layout()
     return fig
+
+
+def _pair_bars(ax: Any, names: list[str], passing: list[int], failing: list[int]) -> None:
+    """Horizontal stacked bars (passing, then failing), the first name at the top."""
+    y = np.arange(len(names))
+    ax.barh(y, passing, color="tab:green", label="passing")
+    ax.barh(y, failing, left=passing, color="tab:red", label="failing")
+    ax.set_yticks(y, names, fontsize=8)
+    ax.set_xlabel("stored pairs")
+    ax.grid(axis="x", alpha=0.3)
+    if names:
+        ax.set_ylim(len(names) - 0.5, -0.5)
+        ax.legend(loc="lower right", fontsize=8)
 
 
 def _loss_figure(stats: DatasetStats) -> Figure:

@@ -593,11 +593,9 @@ def repair_meshes(
             todo.append(item)
     bar = None
     if progress:
-        from tqdm import tqdm
+        from dg16m_core.progress import progress_bar
 
-        bar = tqdm(  # shown on a terminal only (disable=None)
-            total=len(items), initial=len(run.kept), unit="mesh", desc="repair", disable=None
-        )
+        bar = progress_bar(total=len(items), initial=len(run.kept), unit="mesh", desc="repair")
     try:
         with remembered_interrupts() as interrupted:
             results = run_tasks(

@@ -156,7 +156,7 @@ def _collect_arguments(collect: argparse.ArgumentParser) -> None:
         "--env-id",
         choices=ENV_IDS,
         default=ENV_ID,
-        help=f"the environment (default: {ENV_ID}, the latest version)",
+        help=f"the environment (default: {ENV_ID})",
     )
     collect.add_argument(
         "--benchmark",

@@ -13,6 +13,7 @@ from typing import Any
 from dg16m_core import arguments
 from dg16m_core.cli import add_command
 from dg16m_core.errors import Dg16mError
+from dg16m_core.stopping import sigterm_interrupts
 from dg16m_env.physics.simulator import add_simulator_arguments, simulator_from_args
 
 EVALUATE_EXAMPLES = (
@@ -22,7 +23,8 @@ EVALUATE_EXAMPLES = (
     "  # a quick look: 5 objects of the real benchmark (the result says it is partial)\n"
     "  dg16m evaluate --predictor baselines.pairing_baselines:force_closure_baseline "
     "--evaluators fce,gsr --benchmark real --limit 5\n"
-    "  # after Ctrl-C: finished evaluators were kept in --out; skip them\n"
+    "  # after Ctrl-C or SIGTERM: finished evaluators were kept in --out, and gsr's finished\n"
+    "  # objects beside it (runs/fc.gsr.checkpoint/); skip them all\n"
     "  dg16m evaluate runs/refs/force_closure.h5 --out runs/fc.json --resume\n"
     "  # run your predictor (a function observation -> dual grasps) in a sandboxed process\n"
     "  dg16m evaluate --predictor my_grasps.py:predict --save-submission runs/mine.h5\n"
@@ -79,7 +81,8 @@ def add_subset_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="IDS",
         default=None,
         help="only these objects: comma-separated ids, or a file with one id a line; the "
-        "submission must hold exactly them and the result is marked partial (never ranked)",
+        "submission must hold exactly them (evaluate --policy: episodes draw only among them, e.g. "
+        "the held-out objects) and the result is marked partial (never ranked)",
     )
     arguments.add_limit_argument(
         group, "only the benchmark's first N objects (a partial run, as --objects)", metavar="N"
@@ -199,7 +202,9 @@ def _evaluate_arguments(ev: argparse.ArgumentParser) -> None:
         action="store_true",
         help="keep the results --out already holds for the same subject (sha256), benchmark "
         "(sha256 and objects), seeds, parameters and evaluator and package versions, and run "
-        "only the others (a --predictor run also reuses the submission it wrote)",
+        "only the others; gsr continues from the objects its checkpoint beside --out "
+        "(OUT.gsr.checkpoint/) holds, with the same result as an uninterrupted run (a "
+        "--predictor run also reuses the submission it wrote)",
     )
     arguments.add_parallel_arguments(ev, "local processes (default 1)")
     ev.add_argument(
@@ -286,7 +291,6 @@ def _names(text: str | None, default: str) -> list[str]:
 
 def _evaluate(args: argparse.Namespace) -> int:
     from dg16m_env import evaluators
-    from dg16m_env.evaluators import load_benchmark_ref, make
 
     if args.list:
         for name in evaluators.names():
@@ -310,14 +314,6 @@ def _evaluate(args: argparse.Namespace) -> int:
             f"--simulator {simulator.name}: expected a submission or --predictor (the gsr "
             f"evaluator runs trials), found --{kind}"
         )
-    subset = (
-        "--objects" if args.objects is not None else "--limit" if args.limit is not None else None
-    )
-    if subset is not None and kind == "policy":
-        raise EvaluateCommandError(
-            f"{subset}: expected a submission, --predictor or --classifier (scored on benchmark "
-            "objects), found --policy (episodes of an environment)"
-        )
     if args.resume and args.out is None:
         raise EvaluateCommandError("--resume: expected --out RESULTS.json to resume, found none")
     if args.resume and kind not in ("submission", "predictor"):
@@ -325,35 +321,23 @@ def _evaluate(args: argparse.Namespace) -> int:
             f"--resume: expected a submission file or --predictor (a subject with a sha256), "
             f"found --{kind}"
         )
+    if kind == "policy" and args.env_id is None:
+        raise EvaluateCommandError("--policy: expected --env-id, found none")
+    if kind == "submission":  # a file that cannot be read is bad input, before anything else
+        from dataset_gen.io import open_hdf5
+
+        with open_hdf5(args.submission, "HDF5 submission file"):
+            pass
     progress = not args.no_progress
     started = time.perf_counter()
-    results: dict[str, Any] = {}
     record: dict[str, Any] = {"kind": kind}
-    if kind == "policy":
-        if args.env_id is None:
-            raise EvaluateCommandError("--policy: expected --env-id, found none")
-        policy = _load_trusted(args.policy)
-        record["target"] = args.policy
-        for name in _names(args.evaluators, "policy"):
-            ev = make(name, env_id=args.env_id, n_episodes=args.episodes, seed=args.seed)
-            results[name] = ev.evaluate(policy)
-            _save(args.out, results, record)
-    else:
-        ref = subset_of(load_benchmark_ref(args.benchmark, args.mesh_root), args)
-        if ref.partial:
-            record.update(
-                {"partial": True, "objects": {"subset": ref.object_ids, "of": ref.full_objects}}
-            )
-            print(partial_note(ref))
-        if kind == "classifier":
-            classifier = _load_trusted(args.classifier)
-            record["target"] = args.classifier
-            for name in _names(args.evaluators, "classifier"):
-                ev = make(name, benchmark=ref, k=args.k, seed=args.seed, progress=progress)
-                results[name] = ev.evaluate(classifier)
-                _save(args.out, results, record)
-        else:
-            results = _score_submission(args, ref, kind, record, simulator, progress)
+    state = _RunState(out=args.out, kind=kind)
+    with sigterm_interrupts():  # SIGTERM stops the run as Ctrl-C does (exit 130)
+        try:
+            results = _run_subject(args, kind, record, simulator, progress, state)
+        except KeyboardInterrupt:
+            print(state.interrupted(), file=sys.stderr)
+            raise
     for result in results.values():
         print(result.format())
     print(f"scored in {time.perf_counter() - started:.1f} s")
@@ -369,6 +353,112 @@ def _evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_subject(
+    args: argparse.Namespace,
+    kind: str,
+    record: dict[str, Any],
+    simulator: Any,
+    progress: bool,
+    state: _RunState,
+) -> dict[str, Any]:
+    """Run the evaluators on the subject of kind ``kind``; ``state`` follows the stages."""
+    from dg16m_env.evaluators import load_benchmark_ref, make
+
+    results = state.results
+    subset = args.objects is not None or args.limit is not None
+    ref = None
+    if kind != "policy" or subset:
+        ref = subset_of(load_benchmark_ref(args.benchmark, args.mesh_root), args)
+        if ref.partial:
+            record.update(
+                {"partial": True, "objects": {"subset": ref.object_ids, "of": ref.full_objects}}
+            )
+            print(partial_note(ref))
+    if kind == "policy":
+        policy = _load_trusted(args.policy)
+        record["target"] = args.policy
+        env_kwargs = _policy_env_kwargs(args, ref)
+        for name in _names(args.evaluators, "policy"):
+            ev = make(
+                name,
+                env_id=args.env_id,
+                n_episodes=args.episodes,
+                seed=args.seed,
+                env_kwargs=env_kwargs,
+                progress=progress,
+            )
+            state.stage = name
+            results[name] = ev.evaluate(policy)
+            _save(args.out, results, record)
+    elif kind == "classifier":
+        classifier = _load_trusted(args.classifier)
+        record["target"] = args.classifier
+        for name in _names(args.evaluators, "classifier"):
+            ev = make(name, benchmark=ref, k=args.k, seed=args.seed, progress=progress)
+            state.stage = name
+            results[name] = ev.evaluate(classifier)
+            _save(args.out, results, record)
+    else:
+        _score_submission(args, ref, kind, record, simulator, progress, state)
+    return results
+
+
+def _policy_env_kwargs(args: argparse.Namespace, ref: Any) -> dict[str, Any] | None:
+    """``--policy``'s environment options: with ``--objects`` / ``--limit``, episodes draw only
+    among those objects of the benchmark (e.g. the held-out ones), passed as the environment's
+    ``object_ids`` (and ``benchmark`` when ``--benchmark`` names one)."""
+    if ref is None or not ref.partial:
+        return None
+    kwargs: dict[str, Any] = {"object_ids": list(ref.object_ids)}
+    if args.benchmark is not None:
+        kwargs["benchmark"] = str(args.benchmark)
+    return kwargs
+
+
+class _RunState:
+    """Where a ``dg16m evaluate`` run is, so that an interrupt (Ctrl-C, SIGTERM) can say what
+    was kept and how to go on."""
+
+    def __init__(self, out: Path | None, kind: str) -> None:
+        self.out, self.kind = out, kind
+        self.stage = "predictor" if kind == "predictor" else "setup"
+        self.results: dict[str, Any] = {}
+        self.checkpoint: Path | None = None
+        self.submission: Path | None = None  # a predictor's submission, recorded in --out
+
+    def interrupted(self) -> str:
+        """One line: the stage that was stopped, what was kept, how to go on."""
+        if self.stage == "predictor":
+            where = (
+                "interrupted while the predictor ran (its submission is written once every "
+                "object is done)"
+            )
+        else:
+            where = f"interrupted during {self.stage}"
+        if self.out is None:
+            return (
+                f"{where}: nothing was kept (no --out); rerun with --out RESULTS.json to be able "
+                "to --resume"
+            )
+        kept = []
+        if self.submission is not None:
+            kept.append(f"kept the predictor's submission {self.submission}")
+        if self.results:
+            kept.append(f"kept {', '.join(self.results)} in {self.out}")
+        n = len(list(self.checkpoint.glob("[0-9]*.npz"))) if self.checkpoint else 0
+        if n:
+            kept.append(f"kept {n} finished {self.stage} objects in {self.checkpoint}")
+        kept_text = "; ".join(kept) or "nothing was kept"
+        if self.kind not in ("submission", "predictor"):
+            return (
+                f"{where}: {kept_text}; a --{self.kind} run cannot resume (in-process code has "
+                "no sha256 to check a resumed run against): rerun it whole"
+            )
+        if not kept:
+            return f"{where}: nothing was kept; rerun the command to start again"
+        return f"{where}: {kept_text}; rerun with --resume to continue from there"
+
+
 def _save(out: Path | None, results: dict[str, Any], record: dict[str, Any]) -> None:
     """Write what is finished so far (atomically), so that an interrupt keeps it."""
     if out is not None:
@@ -382,7 +472,10 @@ def _stored(out: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     from dg16m_env.evaluators.result import read_results_file
 
     if not out.exists():
-        print(f"--resume: nothing to resume in {out} (no such file): running every evaluator")
+        print(
+            f"--resume: no finished evaluators in {out} (no such file): running every evaluator "
+            "(one with a checkpoint beside it goes on from there)"
+        )
         return {}, {}
     return read_results_file(out)
 
@@ -394,10 +487,12 @@ def _score_submission(
     record: dict[str, Any],
     simulator: Any,
     progress: bool,
+    state: _RunState,
 ) -> dict[str, Any]:
     """Score a submission file (given, or made by ``--predictor``) with each evaluator, writing
-    ``--out`` after each; with ``--resume``, results ``--out`` already holds for the same run
-    are kept and not scored again."""
+    ``--out`` after each (and, for an evaluator that checkpoints, each finished object beside
+    it); with ``--resume``, results ``--out`` already holds for the same run are kept and not
+    scored again, and a checkpointed evaluator goes on from its finished objects."""
     from dg16m_core.hashing import file_sha256
     from dg16m_env.evaluators import submission_evaluators
 
@@ -406,8 +501,10 @@ def _score_submission(
     if reused is not None:
         submission, sha256 = reused
     else:
+        state.stage = "predictor" if kind == "predictor" else "setup"
         submission = _submission_subject(args, ref, kind, progress)
         sha256 = file_sha256(submission)
+    state.stage = "setup"
     record.update({"file": str(submission), "target": args.predictor, "sha256": sha256})
     built = submission_evaluators(
         _names(args.evaluators, "fce,gsr"),
@@ -418,29 +515,53 @@ def _score_submission(
         progress=progress,
         simulator=simulator,
     )
-    results: dict[str, Any] = {}
+    results = state.results
     for name, ev in built.items():
         if name in stored:
             _check_resumable(args.out, name, stored[name], ev.planned(), sha256)
             results[name] = stored[name]
             print(f"{name}: kept from {args.out} (finished in an earlier run; --resume)")
+            # stopped between writing the result and removing its checkpoint: remove it now
+            _remove_checkpoint(args.out, name)
     if results or kind == "predictor":  # a predictor's submission is recorded for a resume
         _save(args.out, results, record)
+        if kind == "predictor" and args.out is not None:
+            state.submission = submission
     for name, ev in built.items():
         if name in results:
             continue
-        try:
-            results[name] = ev.evaluate(submission)
-        except KeyboardInterrupt:
-            if results and args.out is not None:
-                print(
-                    f"interrupted during {name}: kept {', '.join(results)} in {args.out}; "
-                    "rerun with --resume to skip them",
-                    file=sys.stderr,
-                )
-            raise
+        state.stage = name
+        options: dict[str, Any] = {}
+        if args.out is not None and _checkpoints(ev):
+            from dg16m_env.evaluators.checkpoint import CheckpointRequest, checkpoint_folder
+
+            state.checkpoint = checkpoint_folder(args.out, name)
+            options["checkpoint"] = CheckpointRequest(
+                state.checkpoint, resume=args.resume, remove=False
+            )
+        results[name] = ev.evaluate(submission, **options)
         _save(args.out, results, record)
+        if state.checkpoint is not None:  # the result is written: its checkpoint is done
+            _remove_checkpoint(args.out, name)
+            state.checkpoint = None
     return results
+
+
+def _remove_checkpoint(out: Path, name: str) -> None:
+    """Remove ``name``'s checkpoint beside ``out`` (its result is in ``out``)."""
+    import shutil
+
+    from dg16m_env.evaluators.checkpoint import checkpoint_folder
+
+    shutil.rmtree(checkpoint_folder(out, name), ignore_errors=True)
+
+
+def _checkpoints(ev: Any) -> bool:
+    """Whether the evaluator ``ev`` checkpoints per object (its ``evaluate`` takes
+    ``checkpoint=``)."""
+    import inspect
+
+    return "checkpoint" in inspect.signature(ev.evaluate).parameters
 
 
 def _check_resumable(

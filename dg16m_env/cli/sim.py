@@ -299,12 +299,16 @@ def _grasp_object(args: argparse.Namespace, object_scale: float):
 
 
 def _write(replay, args: argparse.Namespace, title: str) -> None:
-    from dg16m_env.physics.replay import write_gif, write_strip
+    from dg16m_env.physics.replay import HAND_COLOR_NAMES, slip_curve, write_gif, write_strip
 
     if args.out.suffix.lower() == ".gif":
         write_gif(replay.frames, args.out, fps=args.fps, captions=replay.captions)
     else:
-        write_strip(replay.frames, replay.captions, args.out, title=title)
+        hands = " and ".join(HAND_COLOR_NAMES)
+        title = f"{title}; hands {hands}, contacts red"
+        if replay.layout:
+            title = f"{title}; {replay.layout}"
+        write_strip(replay.frames, replay.captions, args.out, title=title, curve=slip_curve(replay))
     height, width = replay.frames[0].shape[:2]
     count = len(replay.frames)
     print(f"wrote {args.out} ({count} frame{'s' if count != 1 else ''}, {width}x{height})")

@@ -15,7 +15,10 @@ Ids (each documented in its module, with a version history):
 * ``dg16m_env/DualGraspLift-v2`` (:mod:`.lift.v2`): v1's task on 5 ms physics steps with
   compiled step arithmetic, about three times v1's steps per second; ``gym.make_vec`` gives it
   :class:`.lift.vector.LiftVectorEnv` (blocks of environments stepped by this process and
-  worker processes, one message per worker per step).
+  worker processes, one message per worker per step);
+* ``dg16m_env/DualGraspLift-v3`` (:mod:`.lift.v3`): v2 whose success needs both hands grasping
+  on the step it is credited (v2 could credit a hold whose hands had just opened); the newest
+  Lift version, recommended for new work (``gym.make_vec`` as v2).
 
 The Lift task is one package, :mod:`.lift`: one task class (:mod:`.lift.task`) whose versions
 differ by a frozen record (:mod:`.lift.versions`), its reward, experts, demonstrations and
@@ -42,12 +45,14 @@ ENVIRONMENTS: dict[str, tuple[str, int | None]] = {
     "DualGraspLift-v0": ("dg16m_env.envs.lift.v0:DualGraspLiftEnv", 200),
     "DualGraspLift-v1": ("dg16m_env.envs.lift.v1:DualGraspLiftV1Env", 200),
     "DualGraspLift-v2": ("dg16m_env.envs.lift.v2:DualGraspLiftV2Env", 200),
+    "DualGraspLift-v3": ("dg16m_env.envs.lift.v3:DualGraspLiftV3Env", 200),
 }
 
 
 #: name -> ``vector_entry_point`` (``gym.make_vec``'s default for that id)
 VECTOR_ENTRY_POINTS: dict[str, str] = {
     "DualGraspLift-v2": "dg16m_env.envs.lift.vector:lift_v2_vector_env",
+    "DualGraspLift-v3": "dg16m_env.envs.lift.vector:lift_v3_vector_env",
 }
 
 

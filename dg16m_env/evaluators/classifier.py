@@ -69,11 +69,11 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from dataset_gen.sources.object_source import object_seed
 from dg16m_core.checks import check_integer
 from dg16m_core.errors import Dg16mError
+from dg16m_core.progress import progress_bar
 from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
 from dg16m_env.physics.labels import LEVELS
 from dg16m_env.rates import object_rate
@@ -297,7 +297,7 @@ class ClassifierEvaluator(Evaluator):
         scores: dict[int, np.ndarray] = {}
         failures: dict[str, str] = {}
         objects = range(len(bench.objects))
-        for index in tqdm(objects, desc="classifier", disable=not self.progress):
+        for index in progress_bar(objects, desc="classifier", enabled=self.progress):
             rows = np.flatnonzero(bench.object_index == index)
             if rows.size == 0:
                 continue  # nothing to rank: no top-k rows, AP undefined

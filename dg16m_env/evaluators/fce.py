@@ -23,7 +23,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from dataset_gen.force_closure import evaluate
 from dataset_gen.grasps.gripper import ContactStatus, contacts_from_pose
@@ -32,6 +31,7 @@ from dataset_gen.grasps.sampling import SingleArmGrasps
 from dataset_gen.objects.grasp_object import GraspObject
 from dataset_gen.pipeline.parallel import Backend, run_tasks
 from dg16m_core.errors import Dg16mError
+from dg16m_core.progress import progress_bar
 from dg16m_env.benchmark.model import BenchmarkObject
 from dg16m_env.benchmark.ref import BenchmarkRef
 from dg16m_env.subjects.submission import Submission
@@ -183,7 +183,7 @@ class ForceClosureEfficiency(SubmissionEvaluator):
             backend=self.backend,
             address=self.address,
         )
-        for item, out in tqdm(results, total=len(work), desc="fce", disable=not self.progress):
+        for item, out in progress_bar(results, total=len(work), desc="fce", enabled=self.progress):
             rows = index == ids.index(item.object_id)
             if isinstance(out, str):
                 failures[item.object_id] = out

@@ -28,6 +28,7 @@ parameters (``"simulator"``), so it is never mistaken for a C MuJoCo score.
 from __future__ import annotations
 
 import os
+import sys
 from dataclasses import replace
 from typing import Any
 
@@ -35,12 +36,13 @@ import numpy as np
 
 from dataset_gen.pipeline.parallel import Backend
 from dg16m_env.benchmark.ref import BenchmarkRef
-from dg16m_env.physics.labels import LEVELS, concatenate_labels
+from dg16m_env.physics.labels import LEVELS, GraspLabels, concatenate_labels
 from dg16m_env.physics.simulator import Simulator, SimulatorError, check_simulator
 from dg16m_env.physics.success_probabilities import GraspJob, evaluate_objects
-from dg16m_env.physics.trial_protocol import PHASES, TrialStatus
+from dg16m_env.physics.trial_protocol import PHASES, TrialResults, TrialStatus
 from dg16m_env.subjects.submission import Submission
 
+from .checkpoint import CheckpointError, CheckpointRequest, ObjectCheckpoint
 from .registry import EvaluatorError, register
 from .result import EvaluationResult, breakdown, object_means
 from .submissions import SubmissionEvaluator, submission_record
@@ -107,7 +109,21 @@ class GraspSuccessRate(SubmissionEvaluator):
         """The perturbations' seed and the confidence intervals' seed."""
         return {"perturbation": self.spec.seed, "resample": self.seed}
 
-    def evaluate(self, subject: Submission | str | os.PathLike[str]) -> EvaluationResult:
+    def evaluate(
+        self,
+        subject: Submission | str | os.PathLike[str],
+        *,
+        checkpoint: CheckpointRequest | None = None,
+    ) -> EvaluationResult:
+        """Score ``subject``. With ``checkpoint``, each object's labels are recorded in its
+        folder as it finishes, and a resumed run (``checkpoint.resume``) simulates only the
+        objects not recorded there; the result is the same as without (see
+        :mod:`dg16m_env.evaluators.checkpoint`), and the folder is removed once it is complete.
+
+        Raises:
+            CheckpointError: resuming a checkpoint of another run (subject, benchmark,
+                parameters, seeds or versions).
+        """
         submission, poses, index = self.rows(subject)
         ids = self.ref.object_ids
         jobs = [
@@ -116,8 +132,28 @@ class GraspSuccessRate(SubmissionEvaluator):
             )
             for k, obj in enumerate(self.ref.benchmark.objects)
         ]
+        store = None
+        kept: dict[str, GraspLabels | str] = {}
+        if checkpoint is not None:
+            store = ObjectCheckpoint(checkpoint, {**self.planned(), "subject": submission.sha256})
+            kept = {i: self._restored(e) for i, e in store.kept(list(ids)).items()}
+            if kept:
+                print(
+                    f"gsr: resuming: {len(kept)} of {len(ids)} objects kept from {store.folder}",
+                    file=sys.stderr,
+                )
+        position = {object_id: k for k, object_id in enumerate(ids)}
+
+        def record(job: GraspJob, labels: GraspLabels | str) -> None:
+            if store is not None:
+                k = position[job.object_id]
+                if isinstance(labels, str):
+                    store.save(k, job.object_id, error=labels)
+                else:
+                    store.save(k, job.object_id, _label_arrays(labels))
+
         out = evaluate_objects(
-            jobs,
+            [job for job in jobs if job.object_id not in kept],
             scene_params=self.params.scene,
             protocol=self.params.protocol,
             spec=self.spec,
@@ -126,7 +162,47 @@ class GraspSuccessRate(SubmissionEvaluator):
             address=self.address,
             progress=self.progress,
             simulator=self.simulator,
+            on_result=record,
         )
+        for object_id, labels in kept.items():
+            if isinstance(labels, str):
+                out.errors[object_id] = labels
+            else:
+                out.results[object_id] = labels
+        out.results = dict(sorted(out.results.items()))
+        result = self._result(submission, poses, index, out)
+        if store is not None:
+            store.finish()
+        return result
+
+    def _restored(self, entry: dict[str, Any]) -> GraspLabels | str:
+        """An object's labels (or error) as a checkpoint recorded them."""
+        if entry["error"] is not None:
+            return str(entry["error"])
+        arrays = entry["arrays"]
+        try:
+            nominal = TrialResults(
+                **{k: arrays[f"nominal.{k}"] for k in TrialResults.ARRAY_FIELDS},
+                protocol=self.params.protocol,
+            )
+            return GraspLabels(
+                nominal=nominal,
+                status=arrays["status"],
+                failing_phase=arrays["failing_phase"],
+                seeds=arrays["seeds"],
+                spec=self.spec,
+            )
+        except (KeyError, ValueError) as exc:
+            raise CheckpointError(
+                f"gsr checkpoint of {entry['object_id']}: expected its labels, found {exc}; "
+                "remove the checkpoint folder or run without --resume"
+            ) from None
+
+    def _result(
+        self, submission: Submission, poses: np.ndarray, index: np.ndarray, out: Any
+    ) -> EvaluationResult:
+        """The result of the labels ``out`` (a :class:`GsrResult`) of every object."""
+        ids = self.ref.object_ids
         # Grasps of objects that could not be simulated keep p = 0 and count as not run.
         p = {level: np.zeros(len(poses)) for level in LEVELS}
         ran = np.zeros(len(poses), dtype=bool)
@@ -168,6 +244,16 @@ class GraspSuccessRate(SubmissionEvaluator):
                 **_trial_details(out.results.values()),
             },
         )
+
+
+def _label_arrays(labels: GraspLabels) -> dict[str, np.ndarray]:
+    """What a checkpoint records of an object's labels (its spec and protocol are the run's)."""
+    return {
+        **{f"nominal.{k}": getattr(labels.nominal, k) for k in TrialResults.ARRAY_FIELDS},
+        "status": labels.status,
+        "failing_phase": labels.failing_phase,
+        "seeds": labels.seeds,
+    }
 
 
 def _trial_details(results: Any) -> dict[str, Any]:

@@ -57,9 +57,9 @@ from statistics import NormalDist
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from dg16m_core.checks import check_integer
+from dg16m_core.progress import progress_bar
 
 from .registry import Evaluator, EvaluatorError, register
 from .result import EvaluationResult, code_subject, qualified_type
@@ -372,7 +372,7 @@ class PolicyEvaluator(Evaluator):
         try:
             return [
                 self._episode(env, act, i, reset)
-                for i in tqdm(range(self.n_episodes), desc="policy", disable=not self.progress)
+                for i in progress_bar(range(self.n_episodes), desc="policy", enabled=self.progress)
             ]
         finally:
             env.close()

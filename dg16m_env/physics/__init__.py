@@ -5,7 +5,8 @@ table scene (:mod:`.lift_scene`), the choice of simulator (:mod:`.simulator`), t
 engine choice; :mod:`.warp_trials` and :mod:`.warp_kernels`: MuJoCo Warp), success
 probabilities over perturbed trials (:mod:`.labels`), the batched GSR core: many grasps on many
 objects over a pool (:mod:`.success_probabilities`), re-seating hands (:mod:`.reseat`),
-step-by-step replay and its pictures (:mod:`.replay`) and cameras (:mod:`.cameras`).
+step-by-step replay and its pictures (:mod:`.replay`, its files :mod:`.replay_files`) and
+cameras (:mod:`.cameras`).
 
 Layer rule: modules here import MuJoCo, numpy, :mod:`dataset_gen` and each other, never a layer
 of :mod:`dg16m_env` above (benchmark, subjects, evaluators, envs, cli). The protocol is defined

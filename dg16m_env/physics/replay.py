@@ -14,7 +14,8 @@ hands fixed in the world), each with a caption
 ``"t=1.20 s  force+y  slip 3.1 mm"``: time, phase and the object's displacement at the hands' grasp
 centres (the slip measured by the protocol: from the start during *close*, from the end of
 *close* after it). :func:`write_strip` writes frames side by side (a grid for more than four) to
-one PNG, :func:`write_gif` an animated GIF.
+one PNG, with the slip over time under them (:func:`slip_curve`), :func:`write_gif` an animated
+GIF (both in :mod:`dg16m_env.physics.replay_files`, re-exported here).
 
 Rendering needs an offscreen OpenGL: ``MUJOCO_GL=egl`` (GPU, or Mesa's software EGL) or
 ``MUJOCO_GL=osmesa`` (software), with the system libraries ``libegl1`` / ``libosmesa6``.
@@ -28,17 +29,17 @@ from __future__ import annotations
 import copy
 import math
 import os
-import textwrap
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import mujoco
 import numpy as np
 
-from dg16m_core.atomic import atomic_path
 from dg16m_core.errors import Dg16mError
+from dg16m_env.physics.replay_files import ReplayError as ReplayError
+from dg16m_env.physics.replay_files import write_gif as write_gif
+from dg16m_env.physics.replay_files import write_strip as write_strip
 from dg16m_env.physics.scene import Scene
 from dg16m_env.physics.trial_measures import analyse, grasp_centres, object_motion, object_states
 from dg16m_env.physics.trial_protocol import (
@@ -73,8 +74,12 @@ MAX_IMAGE_SIDE = 4096
 OBJECT_ALPHA = 0.5
 """Opacity of the object in renderings (hands behind or under it stay visible)."""
 
-HAND_COLORS = ((0.95, 0.55, 0.15), (0.2, 0.7, 0.95))
-"""Finger colours of hand 0 (orange) and hand 1 (blue) in renderings; palms are lighter."""
+HAND_COLORS = ((0.95, 0.55, 0.15), (0.75, 0.15, 0.75))
+"""Finger colours of hand 0 (orange) and hand 1 (magenta: the object is light blue, a blue hand
+was lost against it) in renderings; palms are lighter."""
+
+HAND_COLOR_NAMES = ("orange", "magenta")
+"""Names of :data:`HAND_COLORS`, for titles and legends."""
 
 BACKGROUND = (0.93, 0.94, 0.96)
 """Colour (RGB in [0, 1]) of the backdrop behind a replayed trial (MuJoCo clears to black)."""
@@ -91,10 +96,6 @@ _INSTALL_HINT = (
 
 class RenderError(Dg16mError, RuntimeError):
     """No offscreen OpenGL context could be created (missing libraries or a bad ``MUJOCO_GL``)."""
-
-
-class ReplayError(Dg16mError, ValueError):
-    """Bad replay input: frame count, image size, output path, row or index."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -298,9 +299,12 @@ def hands_view(scene: Scene, dual_grasp: np.ndarray) -> dict[str, Any]:
     The camera looks across the horizontal line between the two hands' grasp centres (so
     neither hand stands behind the other), from the side of the object the hands are on
     (their mean offset from the object's centre; the default azimuth's side when they are
-    balanced), at :data:`DEFAULT_ELEVATION`; it looks at the middle of the object and the
-    hands and stands back far enough to hold both (:data:`HAND_REACH` around each centre;
-    :data:`REPLAY_DISTANCE_FACTOR` times that extent).
+    balanced), at :data:`DEFAULT_ELEVATION`; it looks at the middle of the two hands and
+    stands back far enough to hold both (:data:`HAND_REACH` around each centre;
+    :data:`REPLAY_DISTANCE_FACTOR` times that extent, and both centres inside the vertical
+    field of view): the view is
+    cropped on the hands and the part of the object they hold, not the whole object (on a
+    large object the hands were a few pixels wide).
 
     Args:
         dual_grasp: (2, 4, 4) hand poses, gripper -> object frame (m); the object starts at the
@@ -311,7 +315,7 @@ def hands_view(scene: Scene, dual_grasp: np.ndarray) -> dict[str, Any]:
     """
     grasp = check_dual_grasps(np.asarray(dual_grasp)[None])
     centres = grasp_centres(scene, grasp)[0]
-    centre, radius = _object_bounds(scene, _start_data(scene))
+    centre, _ = _object_bounds(scene, _start_data(scene))
     across = centres[1, :2] - centres[0, :2]
     default = math.radians(DEFAULT_AZIMUTH)
     forward = np.array([math.cos(default), math.sin(default)])  # camera -> scene, horizontal
@@ -321,13 +325,13 @@ def hands_view(scene: Scene, dual_grasp: np.ndarray) -> dict[str, Any]:
         # the camera stands on the hands' side: it looks towards -side along the normal
         sign = -np.sign(side) if abs(side) > 1e-6 else np.sign(np.dot(forward, normal)) or 1.0
         forward = sign * normal
-    points = np.vstack([centre, centres])
-    lookat = (points.min(axis=0) + points.max(axis=0)) / 2.0
-    reach = np.linalg.norm(centres - lookat, axis=1).max() + HAND_REACH
-    extent = max(radius + float(np.linalg.norm(centre - lookat)), reach)
+    lookat = (centres.min(axis=0) + centres.max(axis=0)) / 2.0
+    half = float(np.linalg.norm(centres - lookat, axis=1).max())
+    # both grasp centres within the vertical field of view (the narrower one), with a margin
+    inside = 1.15 * half / math.tan(math.radians(float(scene.model.vis.global_.fovy)) / 2.0)
     return {
         "lookat": lookat,
-        "distance": REPLAY_DISTANCE_FACTOR * extent,
+        "distance": max(REPLAY_DISTANCE_FACTOR * (half + HAND_REACH), inside),
         "azimuth": math.degrees(math.atan2(forward[1], forward[0])),
     }
 
@@ -434,44 +438,82 @@ def phase_ends(stepped: SteppedTrial) -> list[int]:
     return sorted({0, *ends})
 
 
-def frame_steps(stepped: SteppedTrial, n_frames: int) -> list[int]:
-    """States to render: ``n_frames`` spread over the steps that decide the verdict, plus the end
-    of *close* and, for a failed trial, the first step out of bounds and the end of its failing
-    phase.
+def largest_slip_step(stepped: SteppedTrial) -> int | None:
+    """The state with the largest slip among the steps that decide the verdict (None for an
+    invalid trial)."""
+    if stepped.end == 0:
+        return None
+    slip = stepped.slip[1 : stepped.end + 1]
+    slip = np.where(np.isfinite(slip), slip, np.inf)
+    return int(np.argmax(slip)) + 1
 
-    Up to as many frames as there are phase ends (:func:`phase_ends`: a strip of pictures), the
-    frames are ends of phases spread evenly over them, so no two show the same phase (the
-    object moves by millimetres: frames evenly spread in time looked alike); more frames (an
-    animation) are spread evenly in time."""
+
+def frame_steps(stepped: SteppedTrial, n_frames: int) -> list[int]:
+    """States to render: ``n_frames`` over the steps that decide the verdict, always with the
+    start, the end of *close* and, for a failed trial, the first step out of bounds and the end
+    of its failing phase.
+
+    Exactly ``n_frames`` (more only when the key frames above need them). Up to as many
+    frames as there are phase ends (:func:`phase_ends`: a strip of pictures): the key frames,
+    then the end of *gravity* and the state of the largest slip, then ends of the other phases
+    spread evenly; no phase shows twice after the start (the object moves by millimetres:
+    frames evenly spread in time looked alike). More frames (an animation, or a trial that
+    failed early): every phase end, then states spread evenly in time."""
     if isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer)) or n_frames < 1:
         raise ReplayError(f"n_frames: expected an integer >= 1, found {n_frames!r}")
     end = stepped.end
     if end == 0:
         return [0]
     ends = phase_ends(stepped)
-    if n_frames <= len(ends):
-        picks = np.round(np.linspace(0, len(ends) - 1, int(n_frames))).astype(int)
-        steps = {ends[i] for i in picks.tolist()}
-    else:
-        steps = set(np.round(np.linspace(0, end, int(n_frames))).astype(int).tolist())
+    close_end = stepped.plan.close_end if stepped.plan.close_end <= end else None
     if n_frames == 1:
-        steps = {end}
-    if stepped.plan.close_end <= end:
-        steps.add(stepped.plan.close_end)
-    if stepped.first_out is not None:
-        steps.add(stepped.first_out)
-    steps.add(end)
-    return sorted(steps)
+        return sorted({k for k in (close_end, stepped.first_out, end) if k is not None})
+    if n_frames > len(ends):  # every phase end, the key frames, then states evenly in time
+        steps = {*ends, *(k for k in (close_end, stepped.first_out) if k is not None)}
+        grid = np.round(np.linspace(0, end, int(n_frames) + len(steps))).astype(int).tolist()
+        grid = [k for k in dict.fromkeys(grid) if k not in steps]
+        need = int(n_frames) - len(steps)
+        if need > 0 and grid:
+            picks = np.round(np.linspace(0, len(grid) - 1, min(need, len(grid)))).astype(int)
+            steps |= {grid[i] for i in picks.tolist()}
+        return sorted(steps)
+    chosen: list[int] = []
+    covered: set[str] = set()  # phases with a frame (the start's does not count)
+
+    def add(k: int | None, *, required: bool = False) -> None:
+        if k is None or k in chosen:
+            return
+        phase = stepped.phase_at(k) if k > 0 else None
+        if not required and (len(chosen) >= n_frames or phase in covered):
+            return
+        chosen.append(k)
+        if phase is not None:
+            covered.add(phase)
+
+    for k in (0, end, stepped.first_out, close_end):
+        add(k, required=True)
+    gravity_end = int(np.searchsorted(stepped.plan.phase, 1, side="right"))
+    add(gravity_end if 0 < gravity_end <= end else None)
+    add(largest_slip_step(stepped))
+    rest = [k for k in ends if k not in chosen and stepped.phase_at(k) not in covered]
+    need = n_frames - len(chosen)
+    if need > 0 and rest:
+        picks = np.round(np.linspace(0, len(rest) - 1, min(need, len(rest)))).astype(int)
+        for i in sorted(set(picks.tolist())):
+            add(rest[i])
+    return sorted(chosen)
 
 
 def caption(stepped: SteppedTrial, k: int) -> str:
-    """``"t=1.20 s  force+y  slip 3.1 mm"`` for state ``k`` (with ``"  rot 4 deg"`` once the
-    object has turned by a degree or more)."""
+    """``"t=1.20 s  force+y  slip 3.1 mm"`` for state ``k`` (``" (max)"`` at the largest slip,
+    ``"  rot 4 deg"`` once the object has turned by a degree or more)."""
     if stepped.status == TrialStatus.INVALID:
         reason = InvalidReason(int(stepped.results.invalid_reason[0])).name.lower()
         return f"t=0.00 s  invalid: {reason.replace('_', ' ')}"
     t = float(stepped.states[k, 0])
     text = f"t={t:.2f} s  {stepped.phase_at(k)}  slip {stepped.slip[k] * 1e3:.1f} mm"
+    if k == largest_slip_step(stepped) and stepped.slip[k] > 0:
+        text += " (max)"
     if stepped.rotation_deg[k] >= 1.0:
         text += f"  rot {stepped.rotation_deg[k]:.1f} deg"
     return text
@@ -564,6 +606,8 @@ class Replay:
     frames: list[np.ndarray]
     captions: list[str]
     steps: list[int]
+    layout: str = ""
+    """How the frames are laid out, for a title ('' for one view of both hands)."""
 
     def __repr__(self) -> str:  # frames are images: give their count and size
         size = "x".join(str(v) for v in self.frames[0].shape[1::-1]) if self.frames else "-"
@@ -580,14 +624,81 @@ def replay_trial(
     height: int = 360,
     camera: mujoco.MjvCamera | Mapping[str, Any] | None = None,
 ) -> Replay:
-    """:func:`step_trial` then render it (frames as :func:`trial_frames` describes)."""
+    """:func:`step_trial` then render it (frames as :func:`trial_frames` describes).
+
+    Hands more than :data:`CLOSE_UP_SPLIT` apart (a view of both left them a few pixels wide)
+    are shown, after a first frame of both, as two close-ups side by side in each frame
+    (:func:`hand_close_ups`; hand 0 left, hand 1 right), unless ``camera`` places the camera
+    (a ``mujoco.MjvCamera``, or ``lookat`` / ``distance`` given)."""
     check_size(width, height)
     stepped = step_trial(scene, dual_grasp, protocol)
+    overrides = {} if isinstance(camera, mujoco.MjvCamera) else dict(camera or {})
     if not isinstance(camera, mujoco.MjvCamera):  # both hands in view unless told otherwise
-        camera = {**hands_view(scene, dual_grasp), **dict(camera or {})}
+        camera = {**hands_view(scene, dual_grasp), **overrides}
     steps = frame_steps(stepped, n_frames)
-    frames = render_states(scene, stepped, steps, width=width, height=height, camera=camera)
-    return Replay(stepped, frames, [caption(stepped, k) for k in steps], steps)
+    captions = [caption(stepped, k) for k in steps]
+    close_ups = hand_close_ups(scene, dual_grasp)
+    split = (
+        not isinstance(camera, mujoco.MjvCamera)
+        and not {"lookat", "distance"} & set(overrides)
+        and close_ups is not None
+        and len(steps) > 1
+        and width >= 32
+    )
+    if not split:
+        frames = render_states(scene, stepped, steps, width=width, height=height, camera=camera)
+        return Replay(stepped, frames, captions, steps)
+    assert close_ups is not None
+    frames = render_states(scene, stepped, steps[:1], width=width, height=height, camera=camera)
+    halves = [
+        render_states(scene, stepped, steps[1:], width=w, height=height, camera={**c, **overrides})
+        for w, c in zip((width // 2, width - width // 2), close_ups, strict=True)
+    ]
+    for left, right in zip(*halves, strict=True):
+        frame = np.concatenate([left, right], axis=1)
+        frame[:, width // 2 - 1 : width // 2 + 1] = 255  # a white seam between the close-ups
+        frames.append(frame)
+    layout = "first frame: both hands; then close-ups of each hand (hand 0 left, hand 1 right)"
+    return Replay(stepped, frames, captions, steps, layout)
+
+
+CLOSE_UP_SPLIT = 0.3
+"""Grasp centres farther apart than this (m) are shown as two close-ups (:func:`replay_trial`)."""
+
+CLOSE_UP_DISTANCE = 0.4
+"""Camera distance (m) of a close-up of one hand."""
+
+
+def hand_close_ups(scene: Scene, dual_grasp: np.ndarray) -> list[dict[str, Any]] | None:
+    """Cameras on each hand's grasp centre, from :func:`hands_view`'s direction, at
+    :data:`CLOSE_UP_DISTANCE`; None when the grasp centres are within :data:`CLOSE_UP_SPLIT`
+    of each other (one view shows both large enough)."""
+    grasp = check_dual_grasps(np.asarray(dual_grasp)[None])
+    centres = grasp_centres(scene, grasp)[0]
+    if float(np.linalg.norm(centres[1] - centres[0])) <= CLOSE_UP_SPLIT:
+        return None
+    azimuth = hands_view(scene, dual_grasp)["azimuth"]
+    return [{"lookat": c, "distance": CLOSE_UP_DISTANCE, "azimuth": azimuth} for c in centres]
+
+
+def slip_curve(replay: Replay) -> dict[str, Any] | None:
+    """What :func:`write_strip` draws under the frames: the slip (mm) over the steps that decide
+    the verdict, the protocol's bound, the phases' start times and the frames' times (None for
+    an invalid trial, which was not run)."""
+    stepped = replay.trial
+    if stepped.end == 0:
+        return None
+    states = range(stepped.end + 1)
+    starts = [0, *(int(k) for k in np.flatnonzero(np.diff(stepped.plan.phase)) + 1)]
+    return {
+        "t": stepped.states[: stepped.end + 1, 0].copy(),
+        "slip_mm": 1e3 * stepped.slip[: stepped.end + 1],
+        "limit_mm": 1e3 * float(stepped.results.protocol.max_displacement),
+        "phases": [
+            (float(stepped.states[k, 0]), stepped.phase_at(k + 1)) for k in starts if k in states
+        ],
+        "frames_t": [float(stepped.states[k, 0]) for k in replay.steps],
+    }
 
 
 def trial_frames(
@@ -623,117 +734,3 @@ def trial_frames(
     """
     replay = replay_trial(scene, dual_grasp, protocol, **options)
     return replay.frames, replay.captions
-
-
-# --------------------------------------------------------------------------------------------
-# Files
-# --------------------------------------------------------------------------------------------
-
-
-def _check_frames(frames: Sequence[np.ndarray]) -> list[np.ndarray]:
-    if len(frames) == 0:
-        raise ReplayError("frames: expected at least one frame, found none")
-    out = [np.asarray(f) for f in frames]
-    shape = out[0].shape
-    for i, frame in enumerate(out):
-        if frame.ndim != 3 or frame.shape[2] not in (3, 4) or frame.shape != shape:
-            raise ReplayError(
-                f"frames[{i}]: expected an (H, W, 3) image like frames[0] {shape}, found "
-                f"{frame.shape}"
-            )
-    return [np.clip(f, 0, 255).astype(np.uint8) if f.dtype != np.uint8 else f for f in out]
-
-
-def write_strip(
-    frames: Sequence[np.ndarray],
-    captions: Sequence[str],
-    path: str | os.PathLike[str],
-    *,
-    title: str = "",
-    columns: int | None = None,
-    dpi: int = 100,
-) -> Path:
-    """Write frames side by side (a grid of four columns for more than four) with a caption
-    under each, to one PNG (atomically). Returns the path."""
-    frames = _check_frames(frames)
-    if len(captions) != len(frames):
-        raise ReplayError(
-            f"captions: expected one per frame ({len(frames)}), found {len(captions)}"
-        )
-    from dg16m_core.figures import new_figure, save_png
-
-    n = len(frames)
-    columns = columns or (n if n <= 4 else 4)
-    rows = math.ceil(n / columns)
-    height, width = frames[0].shape[:2]
-    fig_w = columns * width / dpi
-    if title:  # wrapped to the figure's width (about 7 px per character at 10 pt, 100 dpi)
-        title = textwrap.fill(title, max(20, int(fig_w * dpi / 7.5)))
-    caption_in = 0.3
-    title_in = (0.2 + 0.2 * (title.count("\n") + 1)) if title else 0.0
-    fig_h = rows * (height / dpi + caption_in) + title_in
-    fig = new_figure(fig_w, fig_h, dpi=dpi)
-    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
-    for i, (frame, text) in enumerate(zip(frames, captions, strict=True)):
-        r, c = divmod(i, columns)
-        bottom = fig_h - title_in - (r + 1) * (height / dpi + caption_in) + caption_in
-        ax = fig.add_axes((c / columns, bottom / fig_h, 1.0 / columns, (height / dpi) / fig_h))
-        ax.imshow(frame, interpolation="nearest")
-        ax.set_axis_off()
-        label = ax.text(
-            0.5,
-            -caption_in * 0.45 / (height / dpi),
-            text,
-            transform=ax.transAxes,
-            ha="center",
-            va="center",
-            fontsize=9,
-            family="monospace",
-        )
-        drawn = label.get_window_extent(renderer=renderer).width
-        if drawn > 0.96 * width:  # shrink to fit under its frame
-            label.set_fontsize(max(4.0, 9.0 * 0.96 * width / drawn))
-    if title:
-        fig.text(0.5, 1.0 - title_in * 0.5 / fig_h, title, ha="center", va="center", fontsize=10)
-    return save_png(fig, path, dpi=dpi, facecolor="white")
-
-
-def write_gif(
-    frames: Sequence[np.ndarray],
-    path: str | os.PathLike[str],
-    fps: float = 10,
-    *,
-    captions: Sequence[str] | None = None,
-) -> Path:
-    """Write frames as an animated GIF (looping, ``fps`` frames per second; atomically), with
-    ``captions`` drawn on a white band under each frame when given. Returns the path."""
-    from PIL import Image, ImageDraw
-
-    frames = _check_frames(frames)
-    if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
-        raise ReplayError(f"fps: expected a positive number, found {fps!r}")
-    if captions is not None and len(captions) != len(frames):
-        raise ReplayError(
-            f"captions: expected one per frame ({len(frames)}), found {len(captions)}"
-        )
-    images = []
-    for i, frame in enumerate(frames):
-        image = Image.fromarray(frame[..., :3])
-        if captions is not None:
-            band = 22
-            canvas = Image.new("RGB", (image.width, image.height + band), "white")
-            canvas.paste(image, (0, 0))
-            ImageDraw.Draw(canvas).text((6, image.height + 5), captions[i], fill="black")
-            image = canvas
-        images.append(image)
-    out = Path(path)
-    with atomic_path(out) as tmp:
-        images[0].save(
-            tmp,
-            format="GIF",
-            save_all=True,
-            append_images=images[1:],
-            duration=max(20, round(1000.0 / fps)),
-            loop=0,
-        )
-    return out

@@ -13,12 +13,11 @@ failure, and the grasps of an object that cannot be simulated count as 0
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from dataset_gen.objects.decomposition import object_parts
 from dataset_gen.objects.grasp_object import ConvexPart
@@ -26,6 +25,7 @@ from dataset_gen.pipeline.parallel import Backend, run_tasks
 from dataset_gen.sources.object_source import ObjectSource
 from dg16m_core.errors import Dg16mError
 from dg16m_core.parameters import PAPER
+from dg16m_core.progress import progress_bar
 from dg16m_env.physics.labels import LEVELS, GraspLabels, PerturbationSpec, success_probability
 from dg16m_env.physics.scene import SceneParameters, compile_scene
 from dg16m_env.physics.simulator import Simulator, check_simulator
@@ -173,10 +173,13 @@ def evaluate_objects(
     address: str | None = None,
     progress: bool = False,
     simulator: Simulator | str | None = None,
+    on_result: Callable[[GraspJob, GraspLabels | str], None] | None = None,
 ) -> GsrResult:
     """Success probabilities of every job's dual grasps, objects in parallel (a progress bar
     over objects when ``progress``), trials on ``simulator`` (default C MuJoCo; with MuJoCo
     Warp on one GPU use ``workers=1``: each object's trials already fill the device).
+    ``on_result(job, labels or error message)`` is called as each object finishes (e.g. to
+    checkpoint it: an interrupt then loses only the objects in flight).
 
     Raises:
         GsrError: duplicate object ids.
@@ -197,11 +200,13 @@ def evaluate_objects(
         simulator,
     )
     results = run_tasks(_task, list(jobs), args, workers=workers, backend=backend, address=address)
-    for job, result in tqdm(results, total=len(jobs), desc="gsr", disable=not progress):
+    for job, result in progress_bar(results, total=len(jobs), desc="gsr", enabled=progress):
         if isinstance(result, str):
             out.errors[job.object_id] = result
         else:
             out.results[job.object_id] = result
+        if on_result is not None:
+            on_result(job, result)
     out.results = dict(sorted(out.results.items()))
     return out
 

@@ -138,9 +138,9 @@ def run_trials(
     batches = list(_batches(runnable, size))
     iterator: Any = batches
     if progress:
-        from tqdm import tqdm
+        from dg16m_core.progress import progress_bar
 
-        iterator = tqdm(batches, unit="batch", desc=f"trials {scene.object_id}")
+        iterator = progress_bar(batches, unit="batch", desc=f"trials {scene.object_id}")
     for rows in iterator:
         batch = run_batch(grasps[rows])
         for name in TrialResults.ARRAY_FIELDS:

@@ -210,10 +210,10 @@ def run_predictor(
         except _StartError as exc:
             raise PredictorError(f"predictor {spec.target!r} failed to start: {exc}") from None
         if progress:
-            from tqdm import tqdm
+            from dg16m_core.progress import progress_bar
 
             total = len(observations) if hasattr(observations, "__len__") else None
-            bar = tqdm(total=total, unit="object", desc="predictor")
+            bar = progress_bar(total=total, unit="object", desc="predictor")
         broken: str | None = None  # why no child can run the rest
         for index, observation in enumerate(observations):
             object_id = _object_id(observation, run)

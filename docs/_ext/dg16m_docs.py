@@ -81,9 +81,17 @@ PICTURES = {
     ),
     "DualGraspLift-v2": (
         "lift_episode.gif",
-        "The task v2 keeps from v0 and v1 (actions and success rule; v2 steps the physics at "
-        "5 ms): the v0 episode of the scripted policy on ``tub-1000013``, seed 0, which "
-        "reaches, closes, lifts the tub 10 cm and holds it for 1 s.",
+        "The task: the hands reach the target grasp on ``tub-1000013``, close, lift the tub "
+        "10 cm and hold it for 1 s. Drawn from a run of the scripted policy (seed 0) on the "
+        "first version, whose 2 ms physics steps v2 replaces with 5 ms ones: on v2 the same "
+        "policy moves the hands and the tub slightly differently.",
+    ),
+    "DualGraspLift-v3": (
+        "lift_episode.gif",
+        "The task: the hands reach the target grasp on ``tub-1000013``, close, lift the tub "
+        "10 cm and hold it for 1 s (v3 credits success only on a step on which both hands "
+        "grasp it). Drawn from a run of the scripted policy (seed 0) on the "
+        "first version, whose 2 ms physics steps v2 and v3 replace with 5 ms ones.",
     ),
 }
 

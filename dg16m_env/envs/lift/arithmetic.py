@@ -113,6 +113,7 @@ def _finish_measure(
         speed=speed,
         reach_distance=reach_distance,
         jaw_angle=angle,
+        success_needs_grasp=env.version.success_needs_grasp,
     )
     env._hold_anchor, env._hold_count = hold.anchor, hold.count
     return measures

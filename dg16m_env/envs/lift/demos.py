@@ -1,5 +1,5 @@
 """Collect demonstrations of :class:`~dg16m_env.envs.lift.experts.FeedbackLiftExpert` on
-``dg16m_env/DualGraspLift-v2`` (default) or ``-v1`` into a Farama Minari dataset
+``dg16m_env/DualGraspLift-v2`` (default), ``-v3`` or ``-v1`` into a Farama Minari dataset
 (:func:`collect_lift_demos`, ``dg16m demos collect``): the episodes run in worker processes, are
 written in index order and the dataset is renamed into place. What the files hold, and how
 they are read and replayed, is :mod:`dg16m_env.envs.lift.demo_files`.
@@ -26,6 +26,7 @@ import numpy as np
 from dg16m_core.checks import check_integer
 from dg16m_core.distribution import package_version
 from dg16m_core.errors import Dg16mError
+from dg16m_core.progress import progress_bar
 from dg16m_env.envs.lift.demo_files import (
     DATASET_ID,
     DEFAULT_DATASET_ID,
@@ -134,7 +135,11 @@ def _make_env(config: Mapping[str, Any]) -> Any:
     extra = {}
     if config["max_episode_steps"] is not None:
         extra["max_episode_steps"] = config["max_episode_steps"]
-    return gym.make(config["env_id"], **config["kwargs"], **extra)
+    with warnings.catch_warnings():
+        # Gymnasium's note that a newer version is registered: the version is the command's
+        # choice (--env-id; the default, v2, is the one bc_lift's results name, ENV_ID)
+        warnings.filterwarnings("ignore", message=".*is out of date.*", category=DeprecationWarning)
+        return gym.make(config["env_id"], **config["kwargs"], **extra)
 
 
 def _make_expert(config: Mapping[str, Any]) -> Any:
@@ -357,7 +362,7 @@ def collect_lift_demos(
             ``~/.minari/datasets``); the dataset goes to ``root/<dataset_id>``.
         episodes: how many (>= 1); episode ``i`` resets with seed ``seed + i``.
         dataset_id: ``(namespace/)name-vN``.
-        env_id: one of :data:`ENV_IDS` (default :data:`ENV_ID`, the latest Lift version).
+        env_id: one of :data:`ENV_IDS` (default :data:`ENV_ID`, v2).
         benchmark: ``"procedural"`` (default), ``"real"`` or a benchmark file.
         objects: ``"train"`` (default), ``"held-out"``, ``"all"`` or object ids
             (:func:`select_objects`).
@@ -368,13 +373,12 @@ def collect_lift_demos(
             ``{"episode_steps": 50}`` (then also the ``TimeLimit``), ``{"reward_mode":
             "sparse"}``; ``lift_height`` is passed to the expert as well.
         force: replace an existing dataset of that id.
-        progress: a tqdm bar on stderr.
+        progress: a progress bar on stderr (:func:`dg16m_core.progress.progress_bar`).
 
     Raises:
         LiftDemosError: bad arguments, the dataset exists (without ``force``), no minari.
     """
     minari = import_minari()
-    from tqdm import tqdm
 
     from dataset_gen.pipeline.parallel import run_tasks
     from dg16m_env.benchmark.ref import load_benchmark_ref
@@ -413,7 +417,7 @@ def collect_lift_demos(
             f"{objects if isinstance(objects, str) else 'listed'}), all episodes kept.",
         )
         finished: dict[int, dict[str, Any]] = {}
-        bar = tqdm(total=episodes, desc="lift demos", unit="ep", disable=not progress)
+        bar = progress_bar(total=episodes, desc="lift demos", unit="ep", enabled=progress)
         with bar:
             for index, episode in run_tasks(
                 _episode_task, list(range(episodes)), (config, seed), workers=workers

@@ -6,7 +6,8 @@ do the same arithmetic in one compiled call each (numba, cached on disk after th
 compile). They are the formulas of :mod:`dg16m_env.envs.lift.v0` (the substep targets)
 and :meth:`dg16m_env.envs.lift.task.LiftEnv.state_parts` (the state), in
 scalar form; the results agree with them to rounding (``tests/test_lift_v2.py`` compares the two
-on the same states, within 1e-9), not bit for bit, which is why only v2 uses them.
+on the same states, within 1e-9), not bit for bit, which is why only v2 (and v3, v2 with
+another success rule) uses them.
 
 Units: m, rad, world frame; quaternions (w, x, y, z); a 6D rotation is ``[R[:, 0], R[:, 1]]``.
 Compiled with numpy's error model: a diverged state gives NaN values (the env reports the step

@@ -118,6 +118,7 @@ def measure_step(
     speed: float,
     reach_distance: float,
     jaw_angle: float | None,
+    success_needs_grasp: bool = False,
 ) -> tuple[Hold, LiftStepMeasures]:
     """One step's hold (:func:`update_hold`), success (a hold of ``hold_steps`` steps) and
     termination (:func:`termination_of`) from what the step measured.
@@ -133,6 +134,10 @@ def measure_step(
             mass, world (m).
         speed: the object's linear speed (m/s; ignored when ``unstable``).
         reach_distance, jaw_angle: passed through to the measures.
+        success_needs_grasp: success also needs both hands grasping on this step
+            (:attr:`~.versions.LiftVersion.success_needs_grasp`: v3); otherwise a hold that
+            has lasted its time succeeds even on the step the hands let go. A hold that reaches
+            its time without the grasp goes on, and succeeds on the first step that has both.
 
     Returns:
         The hold after the step and the step's :class:`LiftStepMeasures`.
@@ -147,6 +152,8 @@ def measure_step(
         max_slip=max_slip,
     )
     success = holding and new.count >= hold_steps
+    if success_needs_grasp:
+        success = success and bool(grasping.all())
     termination = termination_of(com=com, speed=speed, unstable=unstable, success=success)
     return new, LiftStepMeasures(
         lift=lift,

@@ -70,13 +70,18 @@ STATE_HIGH = np.concatenate([np.full(size, hi) for _, size, _, hi in STATE_LAYOU
 )
 
 
-def observation_space(obs_mode: str, n_points: int = POINTCLOUD_SIZE) -> spaces.Space:
+def observation_space(
+    obs_mode: str, n_points: int = POINTCLOUD_SIZE, flat_cloud: bool = False
+) -> spaces.Space:
     """The observation space of ``obs_mode`` (one of :data:`OBS_MODES`).
 
     * ``"state"``: ``Box(STATE_LOW, STATE_HIGH, (STATE_SIZE,), float32)``;
     * ``"state_dict"``: ``Dict`` of one ``Box`` per part of :data:`STATE_LAYOUT`;
     * ``"pointcloud"``: ``Dict(state=<the "state" Box>, points=Box(-5, 5, (n_points, 3)),
-      normals=Box(-1, 1, (n_points, 3)), mask=Box(0, 1, (n_points,)))``.
+      normals=Box(-1, 1, (n_points, 3)), mask=Box(0, 1, (n_points,)))``; with ``flat_cloud``
+      (:attr:`~.versions.LiftVersion.flat_cloud`, v3) ``points`` and ``normals`` are
+      ``(3 n_points,)`` vectors, the same numbers row by row (``reshape(-1, 3)`` gives the
+      rows), as the one-step environments' clouds.
     """
     if obs_mode == "state":
         return spaces.Box(STATE_LOW, STATE_HIGH, dtype=np.float32)
@@ -89,11 +94,12 @@ def observation_space(obs_mode: str, n_points: int = POINTCLOUD_SIZE) -> spaces.
         )
     if obs_mode == "pointcloud":
         bound = np.float32(POSITION_BOUND)
+        shape = (3 * n_points,) if flat_cloud else (n_points, 3)
         return spaces.Dict(
             {
                 "state": spaces.Box(STATE_LOW, STATE_HIGH, dtype=np.float32),
-                "points": spaces.Box(-bound, bound, (n_points, 3), dtype=np.float32),
-                "normals": spaces.Box(-1.0, 1.0, (n_points, 3), dtype=np.float32),
+                "points": spaces.Box(-bound, bound, shape, dtype=np.float32),
+                "normals": spaces.Box(-1.0, 1.0, shape, dtype=np.float32),
                 "mask": spaces.Box(0.0, 1.0, (n_points,), dtype=np.float32),
             }
         )

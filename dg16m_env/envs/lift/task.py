@@ -1,12 +1,12 @@
 """The Lift task: two floating Panda hands lift a benchmark object from a table, as one class,
 :class:`LiftEnv`, whose registered versions differ only by the frozen record it reads at
 construction (:class:`~dg16m_env.envs.lift.versions.LiftVersion`: physics step, reward, observation,
-episode bookkeeping, arithmetic).
+episode bookkeeping, arithmetic, success rule).
 
 Each version's environment class is this class bound to its record (``DualGraspLiftEnv`` in
-:mod:`.v0`, ``DualGraspLiftV1Env`` in :mod:`.v1`, ``DualGraspLiftV2Env`` in :mod:`.v2`, which
-document the task: v0's docstring is the reference for the physics, actions, success and
-randomisations; v1's for the reward and observation modes). Its signature is this class's,
+:mod:`.v0`, ``DualGraspLiftV1Env`` in :mod:`.v1`, ``DualGraspLiftV2Env`` in :mod:`.v2`,
+``DualGraspLiftV3Env`` in :mod:`.v3`, which document the task: v0's docstring is the reference
+for the physics, actions and randomisations; v2's and v3's each state the whole interface). Its signature is this class's,
 less the arguments the version does not take (:attr:`~.versions.LiftVersion.arguments`), with
 the version's default target grasp.
 
@@ -18,6 +18,7 @@ episode's end in :mod:`.measures`; the reward in :mod:`.reward`; spaces in :mod:
 
 from __future__ import annotations
 
+import difflib
 import functools
 import inspect
 import os
@@ -75,6 +76,24 @@ def _caller_level() -> int:
     return level
 
 
+def _argument_error(cls: type, version: LiftVersion, kwargs: dict[str, Any], exc: TypeError) -> str:
+    """The message for arguments a version's class does not take: the class and the id it is
+    (not the shared ``LiftEnv.__init__``), the keyword(s) it does not know with the nearest
+    known one, and the keywords it takes."""
+    where = f"{cls.__name__}(), dg16m_env/DualGraspLift-{version.name}"
+    unknown = [name for name in kwargs if name not in version.arguments]
+    if not unknown:
+        return f"{where}: {exc}"
+    hints = []
+    for name in unknown:
+        near = difflib.get_close_matches(name, version.arguments, n=1)
+        hints.append(f"{name!r}" + (f" (did you mean {near[0]!r}?)" if near else ""))
+    return (
+        f"{where}: expected keyword arguments among {', '.join(version.arguments)}, found "
+        f"{', '.join(hints)}"
+    )
+
+
 def _version_init(version: LiftVersion) -> Callable[..., None]:
     """The ``__init__`` of a version's class: :class:`LiftEnv`'s signature less the arguments
     ``version`` does not take, with its default target grasp (so ``inspect.signature``, the
@@ -89,7 +108,10 @@ def _version_init(version: LiftVersion) -> Callable[..., None]:
 
     @functools.wraps(LiftEnv.__init__)
     def __init__(self: LiftEnv, *args: Any, **kwargs: Any) -> None:  # noqa: N807
-        bound = signature.bind(self, *args, **kwargs)
+        try:
+            bound = signature.bind(self, *args, **kwargs)
+        except TypeError as exc:
+            raise TypeError(_argument_error(type(self), version, kwargs, exc)) from None
         bound.apply_defaults()
         arguments = dict(bound.arguments)
         del arguments["self"]
@@ -169,7 +191,9 @@ class LiftEnv(RenderModes, gymnasium.Env[Any, np.ndarray]):
 
         self.observation_space: spaces.Space[Any]
         if version.observation == "modes":
-            self.observation_space = observation_space(self.obs_mode, self.n_points)
+            self.observation_space = observation_space(
+                self.obs_mode, self.n_points, version.flat_cloud
+            )
         else:
             low = np.concatenate([np.full(size, lo) for _, size, lo, _ in OBS_LAYOUT])
             high = np.concatenate([np.full(size, hi) for _, size, _, hi in OBS_LAYOUT])
@@ -465,12 +489,16 @@ class LiftEnv(RenderModes, gymnasium.Env[Any, np.ndarray]):
         data, body = self._current.data, self._current.scene.object_body
         rot, pos = data.xmat[body].reshape(3, 3), data.xpos[body]
         world = (points @ rot.T + pos) * mask[:, None]
-        return {
+        cloud = {
             "state": state,
             "points": np.clip(world, -5.0, 5.0).astype(np.float32),
             "normals": (normals @ rot.T).astype(np.float32),
             "mask": mask.astype(np.float32),
         }
+        if self.version.flat_cloud:  # (3 n,) vectors, the same numbers row by row
+            cloud["points"] = cloud["points"].reshape(-1)
+            cloud["normals"] = cloud["normals"].reshape(-1)
+        return cloud
 
     def _object_cloud(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The episode's object-frame cloud, taken at reset with the env's generator."""

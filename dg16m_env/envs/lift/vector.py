@@ -27,7 +27,8 @@ tested): ``reset(seed=s)`` seeds them ``s, s + 1, ...``; ``options["reset_mask"]
 (after a first reset of every environment); ``autoreset_mode`` is Gymnasium's (``NextStep`` by
 default, ``SameStep`` with ``final_obs`` and ``final_info``, or ``Disabled``).
 
-It is the ``vector_entry_point`` of ``DualGraspLift-v2`` (:func:`lift_v2_vector_env`):
+It is the ``vector_entry_point`` of ``DualGraspLift-v2`` (:func:`lift_v2_vector_env`) and
+``DualGraspLift-v3`` (:func:`lift_v3_vector_env`):
 ``gym.make_vec(id, num_envs=8, workers=2)`` passes this class's keywords to it and the others
 to every ``gymnasium.make``; ``vectorization_mode="sync"`` or ``"async"`` give Gymnasium's own.
 
@@ -46,6 +47,7 @@ import multiprocessing
 import os
 import time
 import traceback
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -66,6 +68,7 @@ from gymnasium.vector.utils import (
 from dg16m_env.envs.lift.vector_block import EnvBlock, Record, batch_infos
 
 LIFT_V2 = "dg16m_env/DualGraspLift-v2"
+LIFT_V3 = "dg16m_env/DualGraspLift-v3"
 
 # --- worker processes -------------------------------------------------------------------------
 
@@ -609,8 +612,12 @@ others go to every ``gymnasium.make``)."""
 
 def make_env(env_id: str, kwargs: dict[str, Any]) -> gymnasium.Env:
     """``gymnasium.make(env_id, **kwargs)``: an environment function by reference (its module
-    imports :mod:`dg16m_env`, which registers the ids, wherever it is unpickled)."""
-    return gymnasium.make(env_id, **kwargs)
+    imports :mod:`dg16m_env`, which registers the ids, wherever it is unpickled). Gymnasium's
+    note that a newer version is registered is left out: ``gym.make_vec`` has made it once for
+    the caller, and each process would repeat it."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*is out of date.*", category=DeprecationWarning)
+        return gymnasium.make(env_id, **kwargs)
 
 
 def lift_v2_vector_env(num_envs: int = 1, **kwargs: Any) -> LiftVectorEnv:
@@ -620,4 +627,12 @@ def lift_v2_vector_env(num_envs: int = 1, **kwargs: Any) -> LiftVectorEnv:
     _check_count("num_envs", num_envs)
     vector = {name: kwargs.pop(name) for name in VECTOR_KEYWORDS if name in kwargs}
     make = functools.partial(make_env, LIFT_V2, kwargs)
+    return LiftVectorEnv([make] * num_envs, **vector)
+
+
+def lift_v3_vector_env(num_envs: int = 1, **kwargs: Any) -> LiftVectorEnv:
+    """The ``vector_entry_point`` of ``DualGraspLift-v3``: as :func:`lift_v2_vector_env`."""
+    _check_count("num_envs", num_envs)
+    vector = {name: kwargs.pop(name) for name in VECTOR_KEYWORDS if name in kwargs}
+    make = functools.partial(make_env, LIFT_V3, kwargs)
     return LiftVectorEnv([make] * num_envs, **vector)

@@ -1,11 +1,12 @@
 """The registered versions of the Lift task, each a frozen record (:class:`LiftVersion`) that the
 one task class (:class:`~dg16m_env.envs.lift.task.LiftEnv`) reads at construction: what differs
-between ``dg16m_env/DualGraspLift-v0``, ``-v1`` and ``-v2`` is written here, side by side, and
-nowhere else. A registered version never changes: a change is a new record (and a new id).
+between ``dg16m_env/DualGraspLift-v0``, ``-v1``, ``-v2`` and ``-v3`` is written here, side by
+side, and nowhere else. A registered version never changes: a change is a new record (and a new id).
 
-Each version is documented in its own module (:mod:`.v0`, :mod:`.v1`, :mod:`.v2`), which also
-names its environment class (``DualGraspLiftEnv``, ``DualGraspLiftV1Env``,
-``DualGraspLiftV2Env``: the task class bound to its record). Standard library only.
+Each version is documented in its own module (:mod:`.v0`, :mod:`.v1`, :mod:`.v2`, :mod:`.v3`),
+which also names its environment class (``DualGraspLiftEnv``, ``DualGraspLiftV1Env``,
+``DualGraspLiftV2Env``, ``DualGraspLiftV3Env``: the task class bound to its record). Standard
+library only.
 """
 
 from __future__ import annotations
@@ -35,13 +36,13 @@ V1_ARGUMENTS = (
     "camera_resolution",
     "episode_steps",
 )
-"""The constructor arguments of v1 and v2."""
+"""The constructor arguments of v1, v2 and v3."""
 
 V0_REWARD_FLAW = (
     "dg16m_env/DualGraspLift-v0 is deprecated and will be removed in dg16m 0.3.0: its dense "
     "reward pays per step over a 200-step horizon, so a policy that lifts the object 5 cm and "
     "hovers earns more than one that completes the lift and hold (success); use "
-    "dg16m_env/DualGraspLift-v2 (or -v1), whose rewards make success the best return"
+    "dg16m_env/DualGraspLift-v3 (or -v2, -v1), whose rewards make success the best return"
 )
 """The :class:`DeprecationWarning` that making v0 raises (DESIGN.md, *The closed-loop task as a
 learning benchmark*)."""
@@ -52,7 +53,7 @@ class LiftVersion:
     """What one registered version of the Lift task is (read once, at construction).
 
     Attributes:
-        name: ``"v0"``, ``"v1"``, ``"v2"`` (the id's suffix).
+        name: ``"v0"``, ``"v1"``, ``"v2"``, ``"v3"`` (the id's suffix).
         arguments: the constructor keywords the version takes (others raise ``TypeError``).
         target_grasp: the default of ``target_grasp`` (None or ``"benchmark"``).
         physics_timestep: MuJoCo's timestep (s); None: the benchmark's (2 ms).
@@ -72,6 +73,15 @@ class LiftVersion:
         render_shadow_size: side of the lights' shadow maps when rendering (pixels); None: the
             model's (4096).
         deprecation: the :class:`DeprecationWarning` raised at construction (None: none).
+        success_needs_grasp: success is credited only on a step on which both hands grasp the
+            object (both fingers each, ``info["grasping"]``); v0-v2 credit a hold that has
+            lasted ``hold_time`` without slip even if the hands have just let go (the slip is
+            measured at the grasp centres, which an object falling out of open fingers has not
+            yet left).
+        flat_cloud: the ``"pointcloud"`` observation's ``points`` and ``normals`` are flat
+            ``(3 n_points,)`` vectors (the same numbers row by row) instead of ``(n_points, 3)``
+            arrays, so stable-baselines3's ``check_env`` has no warning about their shape (as
+            the one-step environments' clouds).
     """
 
     name: str
@@ -85,6 +95,8 @@ class LiftVersion:
     compiled_arithmetic: bool
     render_shadow_size: int | None
     deprecation: str | None = None
+    success_needs_grasp: bool = False
+    flat_cloud: bool = False
 
 
 V0 = LiftVersion(
@@ -120,5 +132,9 @@ V2 = replace(V1, name="v2", physics_timestep=0.005, compiled_arithmetic=True)
 """``dg16m_env/DualGraspLift-v2`` (:mod:`.v2`): v1 on 5 ms physics steps with the compiled
 arithmetic."""
 
-VERSIONS: dict[str, LiftVersion] = {version.name: version for version in (V0, V1, V2)}
+V3 = replace(V2, name="v3", success_needs_grasp=True, flat_cloud=True)
+"""``dg16m_env/DualGraspLift-v3`` (:mod:`.v3`): v2 whose success needs both hands grasping on
+the step it is credited, with flat point-cloud arrays."""
+
+VERSIONS: dict[str, LiftVersion] = {version.name: version for version in (V0, V1, V2, V3)}
 """Name -> record of every registered version."""
