@@ -128,18 +128,14 @@ def _env_config(
 
 
 def _make_env(config: Mapping[str, Any]) -> Any:
-    import gymnasium as gym
+    from dg16m_env.envs.lift.vector import make_env
 
-    import dg16m_env  # noqa: F401  (registers the environments)
-
-    extra = {}
+    kwargs = dict(config["kwargs"])
     if config["max_episode_steps"] is not None:
-        extra["max_episode_steps"] = config["max_episode_steps"]
-    with warnings.catch_warnings():
-        # Gymnasium's note that a newer version is registered: the version is the command's
-        # choice (--env-id; the default, v2, is the one bc_lift's results name, ENV_ID)
-        warnings.filterwarnings("ignore", message=".*is out of date.*", category=DeprecationWarning)
-        return gym.make(config["env_id"], **config["kwargs"], **extra)
+        kwargs["max_episode_steps"] = config["max_episode_steps"]
+    # without Gymnasium's note that a newer version is registered: the version is the command's
+    # choice (--env-id; the default, v2, is the one bc_lift's results name, ENV_ID)
+    return make_env(config["env_id"], kwargs)
 
 
 def _make_expert(config: Mapping[str, Any]) -> Any:

@@ -614,7 +614,8 @@ def make_env(env_id: str, kwargs: dict[str, Any]) -> gymnasium.Env:
     """``gymnasium.make(env_id, **kwargs)``: an environment function by reference (its module
     imports :mod:`dg16m_env`, which registers the ids, wherever it is unpickled). Gymnasium's
     note that a newer version is registered is left out: ``gym.make_vec`` has made it once for
-    the caller, and each process would repeat it."""
+    the caller, and each process would repeat it (the demonstrations, whose version is the
+    command's choice, make their environments here too)."""
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*is out of date.*", category=DeprecationWarning)
         return gymnasium.make(env_id, **kwargs)
