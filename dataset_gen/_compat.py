@@ -98,7 +98,7 @@ RENAMED_MODULES: dict[str, str] = {
 def moved_names(module: str) -> Callable[[str], Any]:
     """The ``__getattr__`` of the folder ``module`` (a key of :data:`RENAMED_MODULES`): the old
     module's names, with a :class:`DeprecationWarning`."""
-    return compat.moved_names(module, rest=RENAMED_MODULES[module])
+    return compat.moved_names(module, RENAMED_MODULES[module])
 
 
 def install() -> None:

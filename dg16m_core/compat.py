@@ -11,10 +11,9 @@ Three kinds of redirect:
   acts on the one module;
 * a module that was cut in pieces (``dg16m_env.submission``) is a small module that looks each
   name up in its pieces, in order;
-* a name that left a module that still exists, or a module whose name is now a package's
-  (``dataset_gen.objects`` is the folder of object modules; its old names live in
-  ``dataset_gen.objects.grasp_object``), is found by that module's ``__getattr__``
-  (:func:`moved_names`).
+* the names of a module whose name is now a folder's (``dataset_gen.objects`` is the folder of
+  object modules; its old names live in ``dataset_gen.objects.grasp_object``) are found by the
+  folder's ``__getattr__`` (:func:`moved_names`).
 
 Redirects are resolved by name with :func:`importlib.import_module` when they are used: a table
 is not a dependency of the layers, and nothing in the project imports through it. Standard
@@ -45,24 +44,13 @@ def warn_moved(old: str, new: str, stacklevel: int) -> None:
     )
 
 
-def moved_names(
-    module: str, names: Mapping[str, str] | None = None, rest: str | None = None
-) -> Callable[[str], Any]:
-    """A module-level ``__getattr__`` (PEP 562) for ``module``: a name of ``names`` (name -> the
-    module it went to) is found there, any other name in ``rest`` (a module whose names all used to
-    be ``module``'s), each with a :class:`DeprecationWarning`."""
-    moved = dict(names or {})
+def moved_names(module: str, target: str) -> Callable[[str], Any]:
+    """A module-level ``__getattr__`` (PEP 562) for ``module``, a folder that took the name of an
+    old module whose names all went to ``target``: each of them is found there, with a
+    :class:`DeprecationWarning`."""
 
     def __getattr__(name: str) -> Any:  # noqa: N807  (a module's __getattr__, PEP 562)
-        target = moved.get(name)
-        if (
-            target is None
-            and rest is not None
-            and not name.startswith("__")
-            and hasattr(importlib.import_module(rest), name)
-        ):
-            target = rest
-        if target is None:
+        if name.startswith("__") or not hasattr(importlib.import_module(target), name):
             raise AttributeError(f"module {module!r} has no attribute {name!r}")
         warn_moved(f"{module}.{name}", f"{target}.{name}", stacklevel=3)
         return getattr(importlib.import_module(target), name)

@@ -2,16 +2,12 @@
 layers (0.2.0; see ``CHANGELOG.md``): importing one still works and raises a
 :class:`DeprecationWarning` that names the new home.
 
-Two kinds of redirect:
-
 * :data:`MOVED_MODULES`: a module that moved whole (``dg16m_env.trial`` ->
   ``dg16m_env.physics.trial``) is the same module object under its old name, so reading,
   patching or reloading it through either name acts on the one module; a module that was cut in
   pieces (``dg16m_env.submission``) is a small module that looks each name up in its pieces, in
-  order.
-* :data:`MOVED_NAMES`: a name that left a module that still exists is found by that
-  module's ``__getattr__`` (:func:`moved_names`). (``dg16m_env.envs.dual_grasp_lift``'s, 0.2.0,
-  are now found in its pieces: the module moved into :mod:`dg16m_env.envs.lift`.)
+  order. (The names that had left ``dg16m_env.envs.dual_grasp_lift`` in 0.2.0 are found in
+  its pieces: the module itself moved into :mod:`dg16m_env.envs.lift`.)
 
 The mechanism is the kernel's (:mod:`dg16m_core.compat`, standard library only); this module is
 the table. Redirects are resolved by name when they are used: this table is not a dependency of
@@ -20,13 +16,10 @@ the layers, and nothing in the package imports through it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 from dg16m_core import compat
 from dg16m_core.compat import REMOVED_IN
 
-__all__ = ["MOVED_MODULES", "MOVED_NAMES", "REMOVED_IN", "install", "moved_names"]
+__all__ = ["MOVED_MODULES", "REMOVED_IN", "install"]
 
 _P = "dg16m_env"
 
@@ -97,15 +90,6 @@ MOVED_MODULES: dict[str, tuple[str, ...]] = {
     f"{_P}.envs.lift_targets": (f"{_P}.envs.lift.targets",),
 }
 """Old module name -> its new module(s); a name is looked up in them in order."""
-
-MOVED_NAMES: dict[str, dict[str, str]] = {}
-"""Module that still exists -> {name that left it: the module it went to}."""
-
-
-def moved_names(module: str) -> Callable[[str], Any]:
-    """A module-level ``__getattr__`` for ``module`` that finds the names of
-    :data:`MOVED_NAMES` ``[module]`` in their new modules, with a :class:`DeprecationWarning`."""
-    return compat.moved_names(module, MOVED_NAMES[module])
 
 
 def install() -> None:

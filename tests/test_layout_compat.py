@@ -16,7 +16,7 @@ from importlib import metadata
 import pytest
 
 import dg16m_env  # noqa: F401  (installs the finder of the old paths)
-from dg16m_env._compat import MOVED_MODULES, MOVED_NAMES, REMOVED_IN
+from dg16m_env._compat import MOVED_MODULES, REMOVED_IN
 
 
 def fresh_import(name: str) -> object:
@@ -81,18 +81,6 @@ def test_from_imports_of_old_paths_work() -> None:
     assert TrialStatus is trial_protocol.TrialStatus
     assert judge is trial_measures.judge
     assert run_trials is trial.run_trials
-
-
-@pytest.mark.parametrize(
-    ("module", "name"), [(m, n) for m, names in MOVED_NAMES.items() for n in names]
-)
-def test_a_name_that_left_a_module_is_found_there_and_warns(module: str, name: str) -> None:
-    source = importlib.import_module(module)
-    with pytest.warns(DeprecationWarning, match=rf"{module}\.{name} moved to"):
-        value = getattr(source, name)
-    assert value is getattr(importlib.import_module(MOVED_NAMES[module][name]), name)
-    with pytest.raises(AttributeError, match="has no attribute 'no_such_name'"):
-        _ = source.no_such_name  # type: ignore[attr-defined]
 
 
 def test_the_benchmark_package_names_resolve_without_a_warning() -> None:
