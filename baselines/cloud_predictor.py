@@ -5,7 +5,11 @@ A :class:`CloudPredictor` is a predictor ``observation -> (poses (K, 2, 4, 4), s
 
 1. takes the cloud: ``view="full"`` the observation's own ``points`` / ``normals`` (2048 points on
    the whole surface); ``view="partial"`` what ``n_cameras`` seeded depth cameras see
-   (:func:`camera_cloud`);
+   (:func:`camera_cloud`). Given the cloud track's observation (``dg16m evaluate --track cloud``,
+   :mod:`dg16m_env.subjects.cloud_observation`: no mesh, the harness's depth cameras and noise),
+   both views take ``n_points`` of its points and estimated normals (:func:`is_cloud_track`), and
+   ``view="partial"`` its depth images as the depth views (:func:`depth_views`) instead of casting
+   rays itself;
 2. samples antipodal dual-grasp candidates on the cloud alone
    (:func:`baselines.cloud_grasps.cloud_dual_candidates`; at most ``sampler.max_pairs``); the
    partial-cloud predictors add enclosing grasps (:data:`PARTIAL_SAMPLER`: the hand approaches
@@ -41,8 +45,9 @@ A :class:`CloudPredictor` is a predictor ``observation -> (poses (K, 2, 4, 4), s
    the nearly robust ones level by level (:data:`ROBUST_BONUS`).
 
 No step reads the mesh except :func:`camera_views` (and :func:`camera_cloud`, which keeps
-``n_points`` of its hits), which stands in for a depth camera: it ray
-casts the observation's mesh from cameras placed as the environments place theirs
+``n_points`` of its hits), which stands in for a depth camera on a mesh-track observation
+(the ray casting is :func:`dg16m_env.subjects.cloud_observation.cast_view`, the cloud track's
+own): it ray casts the observation's mesh from cameras placed as the environments place theirs
 (:func:`dg16m_env.physics.cameras.draw_cameras` around the object's box: azimuth spread around,
 elevation -70 to -15 degrees, distance 0.9-1.2 x 2.2 x the bounding radius; MuJoCo's default
 45-degree field of view, ``camera_resolution`` square pixels) and keeps each pixel's first hit
@@ -53,7 +58,8 @@ never sees two antipodal contacts of a convex object, so the partial predictors 
 cameras on roughly opposite sides (``MAX_CAMERAS`` of the environments).
 
 Randomness: per object, ``numpy.random.default_rng(object_seed(seed, "cloud:<object_id>"))``
-(:func:`dataset_gen.sources.object_source.object_seed`) draws the cameras, the cloud subset, the candidates and
+(:func:`dataset_gen.sources.object_source.object_seed`; a cloud-track observation has no id:
+:func:`stream_name` names it by its depth images) draws the cameras, the cloud subset, the candidates and
 (random ranker) the scores, in that order: the output is a function of the observation and the
 parameters only. The same ``seed`` gives every ranker the same candidates.
 
@@ -66,6 +72,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -103,6 +110,13 @@ from dataset_gen.grasps.pairing import score_pairs
 from dataset_gen.sources.object_source import object_seed
 from dg16m_core.checks import check_integer
 from dg16m_core.parameters import PAPER
+from dg16m_env.subjects.cloud_observation import (
+    FOVY_DEG,
+    camera_axes,
+    camera_rays,
+    cast_view,
+    object_cameras,
+)
 
 Ranker = Literal["cgdf", "pointnetgpd", "random", "reversed"]
 RANKERS: tuple[str, ...] = get_args(Ranker)
@@ -123,10 +137,6 @@ PAPER_FORCE_CLOSURE = {
 
 SEED_PREFIX = "cloud:"
 """Prefix of the per-object stream name."""
-
-FOVY_DEG = 45.0
-"""Vertical field of view of the cameras (degrees): MuJoCo's default ``vis.global_.fovy``, which
-the environments' depth cameras use."""
 
 FC_BONUS = 1.0e3
 """Added to the score of a candidate that passes the cloud force-closure check (ranker scores:
@@ -158,32 +168,6 @@ _SCORE_CHUNK = 1024  # candidates per classifier call
 # --------------------------------------------------------------------------------------------
 
 
-def camera_rays(
-    position: np.ndarray, lookat: np.ndarray, resolution: int, fovy_deg: float = FOVY_DEG
-) -> np.ndarray:
-    """(R * R, 3) unit ray directions through the pixel centres of a pinhole camera at
-    ``position`` looking at ``lookat`` (m), ``+z`` up, square image of ``resolution`` pixels."""
-    right, up, forward = camera_axes(position, lookat)
-    half = math.tan(math.radians(fovy_deg) / 2.0)
-    t = (2.0 * (np.arange(resolution) + 0.5) / resolution - 1.0) * half
-    u, v = np.meshgrid(t, -t)  # rows top to bottom
-    rays = forward + u[..., None] * right + v[..., None] * up
-    rays = rays.reshape(-1, 3)
-    return rays / np.linalg.norm(rays, axis=1, keepdims=True)
-
-
-def camera_axes(position: np.ndarray, lookat: np.ndarray) -> np.ndarray:
-    """(3, 3) the unit ``right``, ``up`` and ``forward`` axes (rows) of the camera of
-    :func:`camera_rays`."""
-    forward = np.asarray(lookat, dtype=np.float64) - np.asarray(position, dtype=np.float64)
-    forward /= np.linalg.norm(forward)
-    right = np.cross(forward, [0.0, 0.0, 1.0])
-    if np.linalg.norm(right) < 1e-9:
-        right = np.cross(forward, [0.0, 1.0, 0.0])
-    right /= np.linalg.norm(right)
-    return np.stack([right, np.cross(right, forward), forward])
-
-
 def camera_views(
     observation: dict[str, Any],
     rng: np.random.Generator,
@@ -205,8 +189,6 @@ def camera_views(
         3)`` (m, object frame), and the :class:`~baselines.cloud_grasps.DepthViews` (each
         pixel's distance to its hit, ``inf`` where it saw nothing).
     """
-    from dg16m_env.physics.cameras import draw_cameras
-
     check_integer("n_cameras", n_cameras, minimum=1, error=CloudError)
     check_integer("resolution", resolution, minimum=2, error=CloudError)
     missing = [k for k in ("mesh_vertices", "mesh_faces", "bounds") if k not in observation]
@@ -218,15 +200,10 @@ def camera_views(
         process=False,
     )
     bounds = np.asarray(observation["bounds"], dtype=np.float64)
-    centre = bounds.mean(axis=0)
-    radius = max(float(np.linalg.norm(bounds[1] - bounds[0])) / 2.0, 1e-3)
     points, normals, origins, axes, distances = [], [], [], [], []
-    for pose in draw_cameras(rng, n_cameras, centre, radius):
+    for pose in object_cameras(bounds, rng, n_cameras):
         origin = pose.position
-        rays = camera_rays(origin, np.asarray(pose.lookat), resolution)
-        hit_face, ray, where = mesh.ray.intersects_id(
-            np.tile(origin, (len(rays), 1)), rays, multiple_hits=False, return_locations=True
-        )
+        _, hit_face, ray, where = cast_view(mesh, pose, resolution)
         points.append(where)
         normals.append(mesh.face_normals[hit_face])
         distance = np.full(resolution * resolution, np.inf)
@@ -271,6 +248,60 @@ def camera_cloud(
     check_integer("n_points", n_points, minimum=1, error=CloudError)
     points, normals, _ = camera_views(observation, rng, n_cameras=n_cameras, resolution=resolution)
     return fixed_size(points, normals, n_points, rng)
+
+
+def is_cloud_track(observation: dict[str, Any]) -> bool:
+    """Whether ``observation`` is the cloud track's
+    (:func:`dg16m_env.subjects.cloud_observation.cloud_observation`: depth images, no mesh)."""
+    return "depth" in observation and "mesh_vertices" not in observation
+
+
+def stream_name(observation: Any) -> str:
+    """The name of an observation's random stream: its ``object_id``; for a cloud-track
+    observation (no id), ``"depth-"`` and the first 16 hex digits of the sha256 of its depth
+    images and camera poses (the same observation, the same stream)."""
+    if isinstance(observation, dict) and is_cloud_track(observation):
+        digest = hashlib.sha256()
+        for key in ("depth", "camera_poses", "intrinsics"):
+            digest.update(np.ascontiguousarray(observation[key], dtype=np.float64).tobytes())
+        return "depth-" + digest.hexdigest()[:16]
+    object_id = observation.get("object_id") if isinstance(observation, dict) else None
+    if not isinstance(object_id, str) or not object_id:
+        raise CloudError(f"observation object_id: expected a non-empty str, found {object_id!r}")
+    return object_id
+
+
+def depth_views(observation: dict[str, Any]) -> DepthViews:
+    """The :class:`~baselines.cloud_grasps.DepthViews` of a cloud-track observation: camera
+    positions and axes from ``camera_poses`` (OpenCV axes: x right, y down, z forward), each
+    pixel's distance along its ray from ``depth`` (along the optical axis) and ``intrinsics``
+    (``inf`` where the depth is 0).
+
+    Raises:
+        CloudError: images that are not square, or intrinsics other than a centred pinhole with
+            square pixels (what :class:`~baselines.cloud_grasps.DepthViews` models).
+    """
+    depth = np.asarray(observation["depth"], dtype=np.float64)
+    poses = np.asarray(observation["camera_poses"], dtype=np.float64)
+    k = np.asarray(observation["intrinsics"], dtype=np.float64)
+    if depth.ndim != 3 or depth.shape[1] != depth.shape[2] or poses.shape != (len(depth), 4, 4):
+        raise CloudError(
+            f"depth, camera_poses: expected (C, R, R) and (C, 4, 4), found {depth.shape} and "
+            f"{poses.shape}"
+        )
+    r = depth.shape[-1]
+    if k.shape != (3, 3) or not np.allclose([k[0, 0], k[0, 2], k[1, 2]], [k[1, 1], r / 2, r / 2]):
+        raise CloudError(f"intrinsics: expected a centred pinhole with fx = fy, found {k.tolist()}")
+    t = (np.arange(r) + 0.5 - r / 2.0) / k[0, 0]
+    stretch = np.sqrt(1.0 + t[None, :] ** 2 + t[:, None] ** 2)  # ray length at unit depth
+    rotation = poses[:, :3, :3]
+    axes = np.stack([rotation[:, :, 0], -rotation[:, :, 1], rotation[:, :, 2]], axis=1)
+    return DepthViews(
+        origins=poses[:, :3, 3].copy(),
+        axes=axes,
+        tan_half=(r / 2.0) / float(k[0, 0]),
+        distance=np.where(depth > 0.0, depth * stretch, np.inf),
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -496,6 +527,15 @@ class CloudPredictor:
 
         if not isinstance(observation, dict):
             raise CloudError(f"observation: expected a dict, found {type(observation).__name__}")
+        if is_cloud_track(observation):  # the harness's cameras: no mesh to cast rays on
+            points, normals, mask = fixed_size(
+                np.asarray(observation["points"]),
+                np.asarray(observation["normals"]),
+                self.n_points,
+                rng,
+            )
+            views = depth_views(observation) if self.view == "partial" else None
+            return check_cloud(points, normals, mask), views
         if self.view == "partial":
             points, normals, views = camera_views(
                 observation, rng, n_cameras=self.n_cameras, resolution=self.camera_resolution
@@ -565,12 +605,7 @@ class CloudPredictor:
     ) -> tuple[Cloud, DualCandidates, np.random.Generator, DepthViews | None]:
         """:meth:`candidates` and the depth views of a partial view (``None`` for the full
         cloud)."""
-        object_id = observation.get("object_id") if isinstance(observation, dict) else None
-        if not isinstance(object_id, str) or not object_id:
-            raise CloudError(
-                f"observation object_id: expected a non-empty str, found {object_id!r}"
-            )
-        rng = np.random.default_rng(object_seed(self.seed, SEED_PREFIX + object_id))
+        rng = np.random.default_rng(object_seed(self.seed, SEED_PREFIX + stream_name(observation)))
         cloud, views = self.observe(observation, rng)
         cloud, n_observed, completion = self.complete(cloud, views)
         free = views if self.free_space else None
@@ -615,7 +650,7 @@ class CloudPredictor:
         cloud, cands, rng, views = self.observed_candidates(observation)
         if cands.n == 0:
             raise CloudError(
-                f"{observation['object_id']}: expected at least one dual candidate on the "
+                f"{stream_name(observation)}: expected at least one dual candidate on the "
                 f"{self.view} cloud ({cloud.n} points), found none (counts: {cands.counts})"
             )
         scores = self.rank(cloud, cands, rng)
@@ -723,7 +758,9 @@ __all__ = [
     "cgdf_robust_predictor",
     "classifier_scores",
     "cloud_force_closure",
+    "depth_views",
     "hands_with_seen_contacts",
+    "is_cloud_track",
     "load_ranker",
     "pointnetgpd_partial_predictor",
     "pointnetgpd_predictor",
@@ -731,4 +768,5 @@ __all__ = [
     "random_partial_predictor",
     "random_predictor",
     "random_robust_predictor",
+    "stream_name",
 ]

@@ -7,8 +7,11 @@ keeps it so). Nothing here imports MuJoCo or torch.
 =====  ==================================  ====================================================
 floor  folder                              what lives there
 =====  ==================================  ====================================================
-6      :mod:`dataset_gen.cli`              the generator's ``dg16m`` subcommands
-5      :mod:`dataset_gen.real`             real meshes: repair, your own folders, Sweet Home 3D
+7      :mod:`dataset_gen.cli`              the generator's ``dg16m`` subcommands
+6      :mod:`dataset_gen.collection`       a dataset at DG16M's scale: sources, splits, build,
+                                           card
+5      :mod:`dataset_gen.real`             real meshes: repair, your own folders, Sweet Home 3D,
+                                           pybullet's random_urdfs
 4      :mod:`dataset_gen.pipeline`         runs (pool, Ray, resume), generate, stats, verify,
                                            render
 3      :mod:`dataset_gen.sources`          where objects come from: sources, procedural

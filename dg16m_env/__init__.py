@@ -8,9 +8,10 @@ below it (``tests/test_import_circles.py`` keeps it so):
 =====  ==========================  ==============================================================
 layer  folder                      what lives there
 =====  ==========================  ==============================================================
-6      :mod:`dg16m_env.cli`        the ``dg16m`` subcommands of this package
-5      :mod:`dg16m_env.envs`       the Gymnasium tasks, their rewards and experts
-4      :mod:`dg16m_env.evaluators` scoring: registry, results, fce, gsr, classifier, policy
+7      :mod:`dg16m_env.cli`        the ``dg16m`` subcommands of this package
+6      :mod:`dg16m_env.envs`       the Gymnasium tasks, their rewards and experts
+5      :mod:`dg16m_env.evaluators` scoring: registry, results, fce, gsr, classifier, policy
+4      :mod:`dg16m_env.training`   a dataset folder as torch datasets (clouds, poses, labels)
 3      :mod:`dg16m_env.subjects`   what gets scored: submission files, predictors, observations
 2      :mod:`dg16m_env.benchmark`  the benchmark: model, file, sources, building, reports
 1      :mod:`dg16m_env.physics`    MuJoCo only: scenes, the trial protocol and its engines, labels

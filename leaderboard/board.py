@@ -12,6 +12,8 @@ together the parts, each in its own module:
 * :mod:`leaderboard.queue`: the scoring jobs, their claims and leases, and every state change
   as an event;
 * :mod:`leaderboard.results`: reading submissions, counts and ranked results for the views;
+* :mod:`leaderboard.tracks`: each submission's track (mesh or cloud, from its file's
+  metadata) and provenance; standings are per track, never mixed;
 * :mod:`leaderboard.query_checks`: the errors, and the checks of names, labels, ids and queries.
 
 Any number of processes may open the same board. Submission files are validated
@@ -31,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dg16m_env.subjects.submission import SubmissionInvalid, SubmissionLimits
+from dg16m_env.subjects.submission import Problem, SubmissionInvalid, SubmissionLimits
 from dg16m_env.subjects.submission_reader import read_submission
 
 from .files import FileStore
@@ -54,6 +56,7 @@ from .queue import Claim, NewSubmission, Queue
 from .results import Results
 from .store import BUSY_TIMEOUT_MS, Store
 from .teams import Team, Teams
+from .tracks import TrackError, track_of
 
 __all__ = [
     "BUSY_TIMEOUT_MS",
@@ -298,11 +301,14 @@ class Board:
             filename: the name to record (default the path's name); a plain file name.
             label: the name shown on the board (default the file's metadata ``method``, else
                 the file name without its extension).
+            (the track, ``mesh`` or ``cloud``, and its provenance come from the file's metadata
+            ``track``: see :mod:`leaderboard.tracks`)
             evaluators: evaluator names (default the board's).
 
         Raises:
             BoardError: a bad file name, label or evaluator name, or a file that changed.
-            SubmissionInvalid: the file has problems (all listed); nothing was stored.
+            SubmissionInvalid: the file has problems (all listed), or its metadata names a
+                track that is not ``mesh`` or ``cloud``; nothing was stored.
             DuplicateError: this team already submitted the same file for the same evaluators.
         """
         filename = check_file_name(Path(path).name if filename is None else filename)
@@ -319,6 +325,10 @@ class Board:
             )
         except SubmissionInvalid as exc:
             raise SubmissionInvalid(exc.problems, filename) from None
+        try:
+            track, provenance = track_of(submission.metadata)
+        except TrackError as exc:
+            raise SubmissionInvalid([Problem("attrs/metadata", exc.message)], filename) from None
         sha256 = submission.sha256
         label = check_label(_label_of(submission.metadata, filename) if label is None else label)
         same = self.jobs.duplicate(team.id, sha256, names)
@@ -335,7 +345,9 @@ class Board:
                     f"{path}: expected a file that stays put, found it changed while stored"
                 )
             return self.jobs.enqueue(
-                NewSubmission(team.id, team.name, sha256, size, filename, label, names)
+                NewSubmission(
+                    team.id, team.name, sha256, size, filename, label, names, track, provenance
+                )
             )
 
     def submission_row(self, submission_id: int) -> sqlite3.Row:
@@ -387,10 +399,13 @@ class Board:
         Raises:
             BoardError: a result of only some of the benchmark's objects (``dg16m evaluate
                 --objects / --limit``, marked partial), or of another number of objects than
-                the board's benchmark holds: the board never ranks such a result.
+                the board's benchmark holds: the board never ranks such a result; or a result
+                whose subject declares another track than the submission's.
         """
+        track = self.submission_row(claim.submission_id)["track"]
         for name, result in results.items():
             check_full_result(name, result, len(self.benchmark.object_ids))
+            check_result_track(name, result, track)
         return self.jobs.finish(claim, results, log)
 
     def fail(self, claim: Claim, error: str, log: str) -> bool:
@@ -417,17 +432,21 @@ class Board:
         return self.rows.results(submission_id)
 
     def scored(self) -> list[sqlite3.Row]:
-        """Every stored result of a scored submission with its submission, team and rank, best
-        headline score first per evaluator (ties: earlier submission first)."""
+        """Every stored result of a scored submission with its submission, team, track and rank
+        (within its track and evaluator), best headline score first per track and evaluator
+        (ties: earlier submission first)."""
         return self.rows.scored()
 
-    def scored_totals(self) -> dict[str, int]:
-        """Scored results per evaluator."""
-        return self.rows.scored_totals()
+    def scored_totals(self, *, track: str) -> dict[str, int]:
+        """Scored results of one track per evaluator."""
+        return self.rows.scored_totals(track=track)
 
-    def scored_page(self, evaluator: str, offset: int, limit: int) -> list[sqlite3.Row]:
-        """One page of an evaluator's ranked results (see :meth:`Results.scored_page`)."""
-        return self.rows.scored_page(evaluator, offset, limit)
+    def scored_page(
+        self, evaluator: str, offset: int, limit: int, *, track: str
+    ) -> list[sqlite3.Row]:
+        """One page of an evaluator's ranked results in one track (see
+        :meth:`Results.scored_page`)."""
+        return self.rows.scored_page(evaluator, offset, limit, track=track)
 
 
 def check_full_result(name: str, result: Any, n_objects: int) -> None:
@@ -455,6 +474,28 @@ def check_full_result(name: str, result: Any, n_objects: int) -> None:
             f"{name}: expected a result over the benchmark's {n_objects} objects, found a "
             f"partial one ({objects} objects, from 'dg16m evaluate --objects/--limit'): the "
             "board never ranks partial results; score the whole benchmark"
+        )
+
+
+def check_result_track(name: str, result: Any, track: str) -> None:
+    """Refuse a result whose subject record names another track than the submission's (the
+    board ranks it in the submission's track: the two must agree).
+
+    Args:
+        name: the evaluator's name.
+        result: an :class:`~dg16m_env.evaluators.EvaluationResult` (or anything with
+            ``to_dict()``); one without a subject track is not checked.
+        track: the submission's track.
+
+    Raises:
+        BoardError: the tracks differ.
+    """
+    record = result.to_dict().get("subject") if hasattr(result, "to_dict") else None
+    found = record.get("track") if isinstance(record, Mapping) else None
+    if found is not None and found != track:
+        raise BoardError(
+            f"{name}: expected a result of a {track}-track submission, found one whose subject "
+            f"declares the {found!r} track"
         )
 
 

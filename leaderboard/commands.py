@@ -168,12 +168,20 @@ def _add_show(actions: Any) -> None:
     show = add_command(
         actions,
         "show",
-        "Print the board: per evaluator, scored submissions ranked, with 95%% CIs.",
+        "Print the board: per track (mesh, cloud) and evaluator, scored submissions ranked "
+        "within their track, with 95%% CIs.",
         "  dg16m leaderboard show --db runs/board.db\n"
+        "  dg16m leaderboard show --db runs/board.db --track cloud\n"
         "  dg16m leaderboard show --db runs/board.db --evaluator gsr --limit 10 --json\n",
     )
     _db(show)
     show.add_argument("--evaluator", default=None, help="only this evaluator")
+    show.add_argument(
+        "--track",
+        choices=("mesh", "cloud"),
+        default=None,
+        help="only this track (default: every track, each ranked apart)",
+    )
     arguments.add_limit_argument(show, "rows per evaluator (default 20)", 20)
     show.add_argument("--json", action="store_true", help="print the board view as JSON")
     show.set_defaults(handler=_show)
@@ -427,7 +435,12 @@ def _print_progress(sid: int) -> Callable[[dict[str, Any], float], None]:
 def _print_submission(view: dict[str, Any]) -> None:
     from dg16m_env.evaluators import EvaluationResult
 
-    print(f"#{view['id']} {view['label']} ({view['team']}): {view['status']}")
+    from .tracks import provenance_summary
+
+    track = view.get("track") or "mesh"  # a service from before tracks sends none
+    print(f"#{view['id']} {view['label']} ({view['team']}): {view['status']}, {track} track")
+    if view.get("provenance") is not None and track != "mesh":
+        print(f"  self-declared: {provenance_summary(view['provenance'])}")
     for result in view.get("results", {}).values():
         print("  " + EvaluationResult.from_dict(result).format().replace("\n", "\n  "))
     if view.get("error"):
@@ -438,10 +451,11 @@ def _show(args: argparse.Namespace) -> int:
     from dg16m_env.evaluators.result import format_rate
 
     from .board import BoardError
+    from .tracks import provenance_summary
     from .views import board_view
 
     board = _open(args)
-    view = board_view(board)
+    view = board_view(board, track=args.track)
     sections = view["evaluators"]
     if args.evaluator is not None:
         sections = [s for s in sections if s["name"] == args.evaluator]
@@ -460,8 +474,13 @@ def _show(args: argparse.Namespace) -> int:
         f"scored, {counts['queued']} queued, {counts['running']} running, {counts['failed']} "
         "failed)"
     )
+    titles = {t["name"]: t["title"] for t in view["tracks"]}
+    track = None
     for section in sections:
-        print(f"\n{section['name']} (ranked by {section['headline']})")
+        if section["track"] != track:
+            track = section["track"]
+            print(f"\n== {titles[track]}")
+        print(f"\n{section['name']} (ranked by {section['headline']}) in the {track} track")
         if not section["rows"]:
             print("  no scored submissions yet")
             continue
@@ -476,6 +495,8 @@ def _show(args: argparse.Namespace) -> int:
             )
             name = f"{row['label'][:30]} #{row['submission']}"
             print(f"  {row['rank']:>4}  {row['team'][:16]:<16} {name:<36}{cells} {row['date']}")
+            if track != "mesh" and row.get("provenance") is not None:
+                print(f"        self-declared: {provenance_summary(row['provenance'])}")
         if len(section["rows"]) > args.limit:
             print(f"  ... {len(section['rows']) - args.limit} more (--limit)")
     return 0

@@ -12,11 +12,14 @@ log lines) goes through :func:`html.escape` with ``quote=True`` before it reache
 The views (built by ``leaderboard.views``):
 
 * board view: ``{"title", "generated_at", "benchmark": {"sha256", "objects", ...}, "counts",
-  "evaluators": [{"name", "headline", "columns", "families", "rows": [{"rank", "submission",
-  "team", "label", "date", "metrics", "per_family", ...}]}]}``;
-* submission view: ``{"id", "team", "label", "filename", "date", "status", "file_sha256",
-  "size", "evaluators", "results": {name: EvaluationResult.to_dict()}}``, plus ``"private",
-  "error", "log", "attempts", "events"`` in a team's own view.
+  "tracks": [{"name", "title", "self_declared", ...}], "evaluators": [{"track", "name",
+  "headline", "columns", "families", "rows": [{"rank", "submission", "team", "label", "date",
+  "metrics", "per_family", "provenance" (cloud), ...}]}]}`` (a view without ``"tracks"`` or a
+  section without ``"track"`` is mesh track);
+* submission view: ``{"id", "team", "label", "filename", "date", "status", "track",
+  "provenance", "file_sha256", "size", "evaluators", "results": {name:
+  EvaluationResult.to_dict()}}``, plus ``"private", "error", "log", "attempts", "events"`` in a
+  team's own view.
 
 The code is cut in three modules, imports pointing one way (``page_html <- page_chart <- page``):
 the small formatting helpers and the HTML document around a page's body are in
@@ -55,6 +58,7 @@ from .page_html import (
     _time,
     _value_cell,
 )
+from .tracks import DEFAULT_TRACK, TRACK_INFO, provenance_rows, provenance_summary
 
 #: The static assets, files under ``leaderboard/static/``.
 ASSETS = ("board.css", "board.js")
@@ -139,7 +143,9 @@ def render_index(
     assets: str,
     page_link: Callable[[int], str] | None = None,
 ) -> str:
-    """The leaderboard page: one sortable table and one per-family chart per evaluator.
+    """The leaderboard page: per track (mesh, then cloud; each under its heading, the cloud
+    track's marked self-declared), one sortable table and one per-family chart per evaluator,
+    ranked within the track.
 
     Args:
         view: the board view (one page of it when it has ``"page"``).
@@ -155,14 +161,15 @@ def render_index(
     parts.append(_counts_line(view.get("counts") or {}))
     if evaluators:
         links = " ".join(
-            f'<a href="#ev-{_slug(ev.get("name"))}">{_e(ev.get("name"))}</a>' for ev in evaluators
+            f'<a href="#ev-{_section_key(ev)}">{_e(ev.get("name"))}{_track_suffix(ev)}</a>'
+            for ev in evaluators
         )
         parts.append(f'<nav class="evaluators" aria-label="Evaluators">{links}</nav>\n')
     parts.append("</header>\n<main>\n")
     if not evaluators:
         parts.append('<p class="empty">No evaluators yet.</p>\n')
-    for ev in evaluators:
-        parts.append(_evaluator_section(ev, link))
+    for track, sections in _tracks_of(view):
+        parts.append(_track_section(track, sections, link))
     paging = view.get("page")
     if isinstance(paging, Mapping) and page_link is not None:
         parts.append(_page_nav(paging, page_link))
@@ -172,6 +179,73 @@ def render_index(
         "resampling objects. A dash: no score.</p></footer>\n"
     )
     return _page(title, assets, "".join(parts), page_class="board-page")
+
+
+def _track_of(ev: Mapping[str, Any]) -> str:
+    """A section's track (a view of version 1 has none: mesh)."""
+    return str(ev.get("track") or DEFAULT_TRACK)
+
+
+def _section_key(ev: Mapping[str, Any]) -> str:
+    """The id part of an evaluator's section: its name in the mesh track (``ev-fce``,
+    ``table-fce``, as before tracks), ``<track>-<name>`` in another (``ev-cloud-fce``)."""
+    track = _track_of(ev)
+    name = str(ev.get("name") or "")
+    return _slug(name if track == DEFAULT_TRACK else f"{track}-{name}")
+
+
+def _track_suffix(ev: Mapping[str, Any]) -> str:
+    track = _track_of(ev)
+    return "" if track == DEFAULT_TRACK else f' <span class="track-tag">{_e(track)}</span>'
+
+
+def _tracks_of(
+    view: Mapping[str, Any],
+) -> list[tuple[Mapping[str, Any], list[Mapping[str, Any]]]]:
+    """The view's tracks (its ``"tracks"``, else those its sections name, else mesh), each with
+    its sections in view order."""
+    evaluators: Sequence[Mapping[str, Any]] = view.get("evaluators") or []
+    tracks = [t for t in view.get("tracks") or [] if isinstance(t, Mapping)]
+    if not tracks:
+        names: list[str] = []
+        for ev in evaluators:
+            if _track_of(ev) not in names:
+                names.append(_track_of(ev))
+        tracks = [{"name": name} for name in names or [DEFAULT_TRACK]]
+    return [
+        (track, [ev for ev in evaluators if _track_of(ev) == str(track.get("name"))])
+        for track in tracks
+    ]
+
+
+def _track_section(
+    track: Mapping[str, Any], sections: Sequence[Mapping[str, Any]], link: Callable[[int], str]
+) -> str:
+    """One track: its heading (what its predictors saw; self-declared or not), then its
+    evaluators' tables, ranked within the track."""
+    name = str(track.get("name") or DEFAULT_TRACK)
+    info = TRACK_INFO.get(name)
+    title = str(track.get("title") or (info.title if info else f"{name} track"))
+    declared = track.get("self_declared", info.self_declared if info else False)
+    parts = [
+        f'<section id="track-{_slug(name)}" class="track track-{_slug(name)}" '
+        f'data-track="{_e(name)}">\n<h2 class="track-title">{_e(title)}</h2>\n'
+    ]
+    if declared:
+        parts.append(
+            '<p class="track-note">Each entry declares how it was run: the submission file '
+            "carries the harness's provenance (harness version, noise model and seed, cameras, "
+            "sandbox, the predictor's code hash), shown on its page. The server records it; it "
+            "does not rerun the predictor. Ranked within this track only.</p>\n"
+        )
+    else:
+        parts.append('<p class="track-note">Ranked within this track only.</p>\n')
+    if not sections:
+        parts.append(f'<p class="empty">No {_e(name)}-track submissions yet.</p>\n')
+    for ev in sections:
+        parts.append(_evaluator_section(ev, link))
+    parts.append("</section>\n")
+    return "".join(parts)
 
 
 def _page_nav(paging: Mapping[str, Any], page_link: Callable[[int], str]) -> str:
@@ -220,12 +294,13 @@ def _counts_line(counts: Mapping[str, Any]) -> str:
 
 def _evaluator_section(ev: Mapping[str, Any], link: Callable[[int], str]) -> str:
     name = str(ev.get("name") or "")
-    slug = _slug(name)
+    slug = _section_key(ev)
     headline = ev.get("headline")
     columns = [str(c) for c in ev.get("columns") or []]
     rows: Sequence[Mapping[str, Any]] = ev.get("rows") or []
     parts = [
-        f'<section id="ev-{slug}" class="evaluator">\n<h2>{_e(name)}</h2>\n',
+        f'<section id="ev-{slug}" class="evaluator" data-track="{_e(_track_of(ev))}">\n'
+        f"<h3>{_e(name)}{_track_suffix(ev)}</h3>\n",
         f'<p class="headline">Ranked by <strong>{_e(headline)}</strong>.'
         ' <span class="hint">Click a column header to sort.</span></p>\n'
         if headline
@@ -253,7 +328,7 @@ def _evaluator_section(ev: Mapping[str, Any], link: Callable[[int], str]) -> str
             f'<td class="team" data-value="{_e(row.get("team"))}">{_e(row.get("team"))}</td>',
             f'<td class="submission" data-value="{_e(row.get("label"))}">'
             f'<a href="{_e(link(submission))}">{_e(row.get("label"))}</a> '
-            f'<span class="id">#{_e(submission)}</span></td>',
+            f'<span class="id">#{_e(submission)}</span>{_declared_badge(ev, row)}</td>',
         ]
         cells += [_value_cell(metrics.get(c)) for c in columns]
         cells.append(
@@ -265,9 +340,21 @@ def _evaluator_section(ev: Mapping[str, Any], link: Callable[[int], str]) -> str
         f"<thead>\n<tr>{''.join(head)}</tr>\n</thead>\n<tbody>\n{''.join(body)}</tbody>\n"
         "</table>\n</div>\n"
     )
-    parts.append(_family_chart(ev, rows[:CHART_TOP]))
+    parts.append(_family_chart(ev, rows[:CHART_TOP], key=slug))
     parts.append("</section>\n")
     return "".join(parts)
+
+
+def _declared_badge(ev: Mapping[str, Any], row: Mapping[str, Any]) -> str:
+    """A cloud entry's mark: "self-declared", its provenance in one line as the tooltip (none
+    in the mesh track)."""
+    provenance = row.get("provenance")
+    if not isinstance(provenance, Mapping) or _track_of(ev) == DEFAULT_TRACK:
+        return ""
+    return (
+        f' <span class="badge declared" title="{_e(provenance_summary(provenance))}">'
+        "self-declared</span>"
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -302,6 +389,7 @@ def render_submission(view: Mapping[str, Any], *, board_link: str, assets: str) 
         '<section class="record">\n<h2>Submission</h2>\n',
         _record_table(view, results),
         "</section>\n",
+        _provenance_section(view),
     ]
     if "private" in view:
         parts.append(_private_section(view))
@@ -344,6 +432,7 @@ def _record_table(view: Mapping[str, Any], results: Mapping[str, Mapping[str, An
         ("Size", _e(_size_text(view.get("size")))),
         ("Date", _time(view.get("date"))),
         ("Status", _e(view.get("status") or DASH)),
+        ("Track", _track_text(view)),
         (
             "Benchmark sha256",
             "<br>".join(f'<code class="sha">{_e(s)}</code>' for s in shas) or DASH,
@@ -352,6 +441,32 @@ def _record_table(view: Mapping[str, Any], results: Mapping[str, Mapping[str, An
     ]
     body = "".join(f'<tr><th scope="row">{k}</th><td>{v}</td></tr>\n' for k, v in rows)
     return f'<table class="kv record">\n<tbody>\n{body}</tbody>\n</table>\n'
+
+
+def _track_text(view: Mapping[str, Any]) -> str:
+    """The record's track: its name and what its predictor saw (self-declared for cloud)."""
+    name = str(view.get("track") or DEFAULT_TRACK)
+    info = TRACK_INFO.get(name)
+    what = info.title.split(": ", 1)[-1] if info else ""
+    return f'<span class="track-name">{_e(name)}</span>' + (f" · {_e(what)}" if what else "")
+
+
+def _provenance_section(view: Mapping[str, Any]) -> str:
+    """A cloud entry's provenance, as its submission file declares it (none for mesh)."""
+    provenance = view.get("provenance")
+    if not isinstance(provenance, Mapping) or str(view.get("track")) == DEFAULT_TRACK:
+        return ""
+    body = "".join(
+        f'<tr><th scope="row">{_e(label)}</th><td><code>{_e(text)}</code></td></tr>\n'
+        for label, text in provenance_rows(provenance)
+    )
+    return (
+        '<section class="provenance">\n<h2>Provenance (self-declared)</h2>\n'
+        '<p class="track-note">How the submitter ran the predictor, as recorded in the '
+        "submission file by <code>dg16m evaluate --track cloud</code>; the server does not "
+        "rerun it.</p>\n"
+        f'<table class="kv provenance">\n<tbody>\n{body}</tbody>\n</table>\n</section>\n'
+    )
 
 
 def _private_section(view: Mapping[str, Any]) -> str:

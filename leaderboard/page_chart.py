@@ -23,10 +23,13 @@ CHART_TOP = 5
 _LEGEND_CHARS = 90
 
 
-def _family_chart(ev: Mapping[str, Any], rows: Sequence[Mapping[str, Any]]) -> str:
+def _family_chart(
+    ev: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], key: str | None = None
+) -> str:
     """An inline SVG bar chart: the headline rate per family (with its confidence interval as a
     whisker) of each of ``rows``; one group per family, one bar per submission, y from 0 to 100 %.
-    Without families, one group of the overall headline rate."""
+    Without families, one group of the overall headline rate. ``key`` names the chart's id
+    (``chart-<key>``; default the evaluator's name: one chart per evaluator and track)."""
     name = str(ev.get("name") or "")
     headline = str(ev.get("headline") or "")
     families = [str(f) for f in ev.get("families") or []]
@@ -55,8 +58,10 @@ def _family_chart(ev: Mapping[str, Any], rows: Sequence[Mapping[str, Any]]) -> s
     def y_of(rate: float) -> float:
         return top + plot_h * (1.0 - min(max(rate, 0.0), 1.0))
 
-    chart_id = f"chart-{_slug(name)}"
-    title = f"{name}: {headline} by family, top {len(rows)} submissions"
+    chart_id = f"chart-{_slug(name if key is None else key)}"
+    track = str(ev.get("track") or "mesh")
+    where = "" if track == "mesh" else f" ({track} track)"
+    title = f"{name}{where}: {headline} by family, top {len(rows)} submissions"
     out = [
         f'<figure class="chart">\n<svg class="bars" id="{chart_id}" role="img" '
         f'aria-labelledby="{chart_id}-title" viewBox="0 0 {width:.0f} {height:.0f}" '

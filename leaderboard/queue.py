@@ -58,6 +58,8 @@ class NewSubmission:
     filename: str
     label: str
     evaluators: list[str]
+    track: str = "mesh"
+    provenance: str | None = None  # the file's metadata "track" object as JSON
 
 
 class Queue:
@@ -95,7 +97,8 @@ class Queue:
                 raise DuplicateError(f"submission: already submitted as #{same}", same)
             cursor = conn.execute(
                 "INSERT INTO submissions (team_id, file_sha256, size, filename, label, "
-                "evaluators, created_at, status) VALUES (?, ?, ?, ?, ?, ?, ?, 'queued')",
+                "evaluators, created_at, status, track, provenance) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, 'queued', ?, ?)",
                 (
                     new.team_id,
                     new.sha256,
@@ -104,6 +107,8 @@ class Queue:
                     new.label,
                     json.dumps(new.evaluators),
                     now,
+                    new.track,
+                    new.provenance,
                 ),
             )
             sid = int(cursor.lastrowid or 0)
@@ -112,7 +117,13 @@ class Queue:
                 "VALUES (?, 'queued', ?, ?)",
                 (sid, now, now),
             )
-            self._event(conn, sid, "queued", None, f"submitted by {new.team_name}: {new.filename}")
+            self._event(
+                conn,
+                sid,
+                "queued",
+                None,
+                f"submitted by {new.team_name}: {new.filename} ({new.track} track)",
+            )
         return sid
 
     # -- claims and leases -------------------------------------------------------------------

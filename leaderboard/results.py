@@ -1,5 +1,5 @@
 """Reading a board for its views: submissions' rows, counts, results, and the scored rows
-ranked per evaluator (a page at a time).
+ranked per track and evaluator (a page at a time; tracks are never ranked together).
 
 Every id that comes in is checked (:func:`~leaderboard.query_checks.check_id`) before it reaches
 SQLite, so an id past SQLite's 64-bit integers is "not found", never an overflow.
@@ -14,6 +14,7 @@ from typing import Any
 from .query_checks import ForbiddenError, NotFoundError, check_id
 from .store import Store
 from .teams import Team
+from .tracks import check_track
 
 STATUSES = ("queued", "running", "scored", "failed")
 """A submission's states (see :mod:`leaderboard.queue`)."""
@@ -24,14 +25,18 @@ _SUBMISSIONS = (
 )
 """A submission's row with its team's name and its job (see :meth:`Results.submission_row`)."""
 _SCORED = (
-    "SELECT r.evaluator, r.evaluator_version, r.score, r.result, s.id AS submission, "
-    "s.label, s.created_at, s.filename, t.name AS team, "
-    "RANK() OVER (PARTITION BY r.evaluator ORDER BY r.score IS NULL, r.score DESC) AS rank "
-    "FROM results r JOIN submissions s ON s.id = r.submission_id "
+    "SELECT s.track, r.evaluator, r.evaluator_version, r.score, r.result, s.id AS submission, "
+    "s.label, s.created_at, s.filename, s.provenance, t.name AS team, "
+    "RANK() OVER (PARTITION BY s.track, r.evaluator ORDER BY r.score IS NULL, r.score DESC) "
+    "AS rank FROM results r JOIN submissions s ON s.id = r.submission_id "
     "JOIN teams t ON t.id = s.team_id WHERE s.status = 'scored'"
 )
-"""Scored results with their competition rank per evaluator (equal scores share a rank)."""
-_ORDER = " ORDER BY evaluator, score IS NULL, score DESC, created_at, submission"
+"""Scored results with their competition rank per track and evaluator (equal scores share a
+rank; a mesh-track and a cloud-track result are never ranked against each other)."""
+_ORDER = (
+    " ORDER BY CASE track WHEN 'mesh' THEN 0 ELSE 1 END, track, evaluator, score IS NULL, "
+    "score DESC, created_at, submission"
+)
 
 
 class Results:
@@ -130,26 +135,42 @@ class Results:
         return {r["evaluator"]: json.loads(r["result"]) for r in rows}
 
     def scored(self) -> list[sqlite3.Row]:
-        """Every stored result of a scored submission with its submission, team and rank, best
-        headline score first per evaluator (ties: earlier submission first)."""
+        """Every stored result of a scored submission with its submission, team, track and
+        rank (within its track and evaluator), mesh track first, best headline score first per
+        track and evaluator (ties: earlier submission first)."""
         with self.store.read() as conn:
             return conn.execute(f"SELECT * FROM ({_SCORED}){_ORDER}").fetchall()
 
-    def scored_totals(self) -> dict[str, int]:
-        """Scored results per evaluator (the rows of each evaluator's table)."""
+    def scored_totals(self, *, track: str) -> dict[str, int]:
+        """Scored results of one track per evaluator (the rows of each evaluator's table in
+        that track).
+
+        Raises:
+            InvalidParameterError: an unknown track.
+        """
+        track = check_track(track)
         with self.store.read() as conn:
             rows = conn.execute(
                 "SELECT r.evaluator, count(*) AS n FROM results r "
-                "JOIN submissions s ON s.id = r.submission_id WHERE s.status = 'scored' "
-                "GROUP BY r.evaluator"
+                "JOIN submissions s ON s.id = r.submission_id "
+                "WHERE s.status = 'scored' AND s.track = ? GROUP BY r.evaluator",
+                (track,),
             ).fetchall()
         return {r["evaluator"]: int(r["n"]) for r in rows}
 
-    def scored_page(self, evaluator: str, offset: int, limit: int) -> list[sqlite3.Row]:
-        """Rows ``offset .. offset + limit`` of one evaluator's ranked results (as
-        :meth:`scored`; ranks count every row before the page)."""
+    def scored_page(
+        self, evaluator: str, offset: int, limit: int, *, track: str
+    ) -> list[sqlite3.Row]:
+        """Rows ``offset .. offset + limit`` of one evaluator's ranked results in one track (as
+        :meth:`scored`; ranks count every row of the track before the page).
+
+        Raises:
+            InvalidParameterError: an unknown track.
+        """
+        track = check_track(track)
         with self.store.read() as conn:
             return conn.execute(
-                f"SELECT * FROM ({_SCORED} AND r.evaluator = ?){_ORDER} LIMIT ? OFFSET ?",
-                (evaluator, limit, offset),
+                f"SELECT * FROM ({_SCORED} AND r.evaluator = ? AND s.track = ?){_ORDER} "
+                "LIMIT ? OFFSET ?",
+                (evaluator, track, limit, offset),
             ).fetchall()

@@ -16,6 +16,10 @@ History
    the claim id and the lease deadline) and ``events`` (every state change, with time, worker
    and message). Submissions of a version-1 board that were queued or running become queued
    jobs; every existing submission gets an event saying it predates the queue.
+3. Tracks: ``submissions.track`` (``'mesh'``: the predictor saw the object's mesh, or
+   ``'cloud'``: only the benchmark's depth cameras, from the file's metadata ``track``) and
+   ``submissions.provenance`` (the file's ``track`` object as JSON, NULL when it had none).
+   Every submission of an older board is mesh-track (no submission before had a track).
 
 All times are seconds since the Unix epoch (UTC).
 """
@@ -114,6 +118,16 @@ MIGRATIONS: tuple[Migration, ...] = (
         INSERT INTO events (submission_id, at, state, message)
             SELECT id, created_at, status, 'recorded before the queue existed (schema 1)'
             FROM submissions;
+        """,
+    ),
+    Migration(
+        3,
+        "tracks: each submission's track (mesh or cloud) and its self-declared provenance",
+        """
+        ALTER TABLE submissions ADD COLUMN track TEXT NOT NULL DEFAULT 'mesh'
+            CHECK (track IN ('mesh', 'cloud'));
+        ALTER TABLE submissions ADD COLUMN provenance TEXT;   -- JSON object, or NULL
+        CREATE INDEX submissions_by_track ON submissions (track, status);
         """,
     ),
 )

@@ -1,13 +1,16 @@
 """What the board shows: JSON-ready views of a :class:`~leaderboard.board.Board`.
 
-* :func:`board_view`: per evaluator, the scored submissions ranked by the evaluator's headline
-  metric (competition ranking: equal scores share a rank), each with its metrics and
-  confidence intervals and its headline per object family; the benchmark; counts by status.
-  With ``page`` and ``limit``, one page of each evaluator's rows (ranks count every row
-  before the page), each section's ``total`` and the view's ``page`` (number, limit, pages,
-  total: the longest section's rows).
-* :func:`submission_view`: one submission: its file's hash and size, its evaluators' full
-  results (per object, versions, hashes, seeds). The public view exists for scored
+* :func:`board_view`: per track (mesh, cloud: :mod:`leaderboard.tracks`) and evaluator, the
+  scored submissions of that track ranked by the evaluator's headline metric (competition
+  ranking within the track: equal scores share a rank; a mesh-track and a cloud-track result
+  are never ranked together), each with its metrics and confidence intervals, its headline per
+  object family and (cloud track) its self-declared provenance; the tracks' headings; the
+  benchmark; counts by status. With ``page`` and ``limit``, one page of each section's rows
+  (ranks count every row before the page), each section's ``total`` and the view's ``page``
+  (number, limit, pages, total: the longest section's rows).
+* :func:`submission_view`: one submission: its track and provenance, its file's hash and
+  size, its evaluators' full results (per object, versions, hashes, seeds). The public view
+  exists for scored
   submissions only; the team's own view (``private=True``) adds the error, the scoring log and
   every state change, for submissions in any state.
 * :func:`queue_view`: the queue's jobs with their workers and leases (the operator's view, on
@@ -15,7 +18,8 @@
   with its token (what the service shows).
 
 The page (:mod:`leaderboard.page`), the service's JSON answers and ``dg16m leaderboard show``
-all read these views; their schema is ``format = "dg16m-leaderboard"``, ``version = 1``.
+all read these views; their schema is ``format = "dg16m-leaderboard"``, ``version = 2``
+(version 1, before tracks, had one section per evaluator and no ``"tracks"``).
 """
 
 from __future__ import annotations
@@ -28,10 +32,12 @@ from typing import Any
 
 from .board import Board, NotFoundError, Team
 from .query_checks import InvalidParameterError
+from .tracks import DEFAULT_TRACK, TRACK_INFO, TRACKS, check_track
 from .worker import iso_time
 
 VIEW_FORMAT = "dg16m-leaderboard"
-VIEW_VERSION = 1
+VIEW_VERSION = 2
+"""2: sections per track (``"track"`` in each, ``"tracks"`` in the view); 1: per evaluator."""
 PAGE_ROWS = 50
 """Rows per evaluator on one page of the board (the service's default)."""
 MAX_PAGE_ROWS = 500
@@ -69,68 +75,47 @@ def board_view(
     now: float | None = None,
     page: int | None = None,
     limit: int = PAGE_ROWS,
+    track: str | None = None,
 ) -> dict[str, Any]:
     """The ranked board (see the module docstring): every row, or page ``page`` (from 1) of
-    ``limit`` rows per evaluator.
+    ``limit`` rows per track and evaluator; every track, or only ``track``.
+
+    Tracks are never mixed: each section is one evaluator's table in one track, ranked within
+    it. The mesh track's sections are always there (the board's evaluators); the cloud track's
+    when it has a scored result, or when ``track`` asks for it.
 
     Raises:
-        InvalidParameterError: a bad page number or size; NotFoundError: a page past the last.
+        InvalidParameterError: a bad page number or size, or an unknown track; NotFoundError:
+            a page past the last.
     """
     setting = board.benchmark
-    totals = board.scored_totals()
-    order = board.evaluators + sorted(set(totals) - set(board.evaluators))
-    by_evaluator: dict[str, list[sqlite3.Row]] = {}
+    tracks = list(TRACKS) if track is None else [check_track(track)]
+    totals = {name: board.scored_totals(track=name) for name in tracks}
+    shown = [t for t in tracks if t == DEFAULT_TRACK or totals[t] or track is not None]
+    orders = {t: board.evaluators + sorted(set(totals[t]) - set(board.evaluators)) for t in shown}
+    by_section: dict[tuple[str, str], list[sqlite3.Row]] = {}
     paging: dict[str, Any] | None = None
     if page is None:
         for row in board.scored():
-            by_evaluator.setdefault(row["evaluator"], []).append(row)
+            by_section.setdefault((row["track"], row["evaluator"]), []).append(row)
     else:
         check_page(page, limit)
-        longest = max(totals.values(), default=0)
+        longest = max((n for t in shown for n in totals[t].values()), default=0)
         pages = max(1, math.ceil(longest / limit))
         if page > pages:
             raise NotFoundError(f"page: expected a page number from 1 to {pages}, found {page}")
         paging = {"number": page, "limit": limit, "pages": pages, "total": longest}
-        for name in order:
-            by_evaluator[name] = board.scored_page(name, (page - 1) * limit, limit)
+        for t in shown:
+            for name in orders[t]:
+                rows = board.scored_page(name, (page - 1) * limit, limit, track=t)
+                by_section[(t, name)] = rows
     sections = []
-    for name in order:
-        rows, columns, families = [], [], set()
-        headline = name  # until a result names it
-        for row in by_evaluator.get(name, []):
-            result = json.loads(row["result"])
-            headline = result["headline"]
-            metrics = {k: _rate_only(v) for k, v in result["metrics"].items()}
-            for key in [headline, *metrics]:
-                if key not in columns and _is_rate(metrics.get(key)):
-                    columns.append(key)
-            per_family = {
-                family: _rate_only(values.get(headline))
-                for family, values in result.get("per_family", {}).items()
-            }
-            families.update(per_family)
-            rows.append(
-                {
-                    "rank": row["rank"],
-                    "submission": row["submission"],
-                    "team": row["team"],
-                    "label": row["label"],
-                    "date": iso_time(row["created_at"]),
-                    "evaluator_version": row["evaluator_version"],
-                    "metrics": metrics,
-                    "per_family": per_family,
-                }
-            )
-        section: dict[str, Any] = {
-            "name": name,
-            "headline": headline,
-            "columns": columns or [headline],
-            "families": sorted(families),
-            "rows": rows,
-        }
-        if paging is not None:
-            section["total"] = totals.get(name, 0)
-        sections.append(section)
+    for t in shown:
+        for name in orders[t]:
+            section = _section(t, name, by_section.get((t, name), []))
+            if paging is not None:
+                section["total"] = totals[t].get(name, 0)
+            sections.append(section)
     view: dict[str, Any] = {
         "format": VIEW_FORMAT,
         "version": VIEW_VERSION,
@@ -142,11 +127,60 @@ def board_view(
             "embedded": setting.embedded,
         },
         "counts": board.counts(),
+        "tracks": [
+            {
+                "name": t,
+                "title": TRACK_INFO[t].title,
+                "self_declared": TRACK_INFO[t].self_declared,
+                "shown": t in shown,
+            }
+            for t in tracks
+        ],
         "evaluators": sections,
     }
     if paging is not None:
         view["page"] = paging
     return view
+
+
+def _section(track: str, name: str, found: list[sqlite3.Row]) -> dict[str, Any]:
+    """One evaluator's table in one track: its rows (ranked within the track), its columns
+    (the headline first) and the object families its rows report."""
+    rows, columns, families = [], [], set()
+    headline = name  # until a result names it
+    for row in found:
+        result = json.loads(row["result"])
+        headline = result["headline"]
+        metrics = {k: _rate_only(v) for k, v in result["metrics"].items()}
+        for key in [headline, *metrics]:
+            if key not in columns and _is_rate(metrics.get(key)):
+                columns.append(key)
+        per_family = {
+            family: _rate_only(values.get(headline))
+            for family, values in result.get("per_family", {}).items()
+        }
+        families.update(per_family)
+        entry = {
+            "rank": row["rank"],
+            "submission": row["submission"],
+            "team": row["team"],
+            "label": row["label"],
+            "date": iso_time(row["created_at"]),
+            "evaluator_version": row["evaluator_version"],
+            "metrics": metrics,
+            "per_family": per_family,
+        }
+        if row["provenance"] is not None:
+            entry["provenance"] = json.loads(row["provenance"])
+        rows.append(entry)
+    return {
+        "track": track,
+        "name": name,
+        "headline": headline,
+        "columns": columns or [headline],
+        "families": sorted(families),
+        "rows": rows,
+    }
 
 
 def submission_view(board: Board, submission_id: int, *, private: bool = False) -> dict[str, Any]:
@@ -171,6 +205,8 @@ def submission_view(board: Board, submission_id: int, *, private: bool = False) 
         "file_sha256": row["file_sha256"],
         "size": row["size"],
         "evaluators": json.loads(row["evaluators"]),
+        "track": row["track"],
+        "provenance": None if row["provenance"] is None else json.loads(row["provenance"]),
         "benchmark": board.benchmark.sha256,
         "results": board.results(submission_id),
     }

@@ -2,9 +2,12 @@
 
 Reproducible: every picture is a fixed row of the benchmark shipped with dg16m (its trials are
 deterministic) or a seeded episode, rendered offscreen (``MUJOCO_GL=egl``, or ``osmesa``).
-The benchmark trials go through the ordinary command, ``dg16m sim replay``; the lift episode
-runs ``DualGraspLift-v0`` with its scripted policy and ``render_mode="rgb_array"``. Each file
-is kept small (the docs are committed): the script fails when one is over ``--max-kb``.
+The benchmark trials go through the ordinary command, ``dg16m sim replay``; the lift episodes
+run ``DualGraspLift-v0`` with its scripted policy (``lift_episode.gif``) and
+``DualGraspLift-v2`` with the feedback expert that ``dg16m demos collect`` records
+(``lift_v2_episode.gif``; the script checks that the same seed on ``DualGraspLift-v3`` gives
+the same observations, so the picture shows v3 too), with ``render_mode="rgb_array"``. Each
+file is kept small (the docs are committed): the script fails when one is over ``--max-kb``.
 
 Usage::
 
@@ -19,9 +22,11 @@ import os
 import shutil
 import subprocess
 import sys
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "_static" / "pictures"
@@ -60,6 +65,9 @@ LIFT_SEED = 0
 LIFT_SIZE = (400, 300)
 LIFT_EVERY = 5  # keep one control step in five (20 Hz -> 4 frames per second of episode)
 
+LIFT_V2_NAME = "lift_v2_episode.gif"
+LIFT_V2_IDS = ("dg16m_env/DualGraspLift-v2", "dg16m_env/DualGraspLift-v3")  # drawn, checked
+
 
 def _dg16m() -> Path:
     """The ``dg16m`` console script next to this interpreter (else the one on PATH)."""
@@ -82,35 +90,75 @@ def render_replay(replay: Replay, out: Path) -> None:
 def render_lift(out: Path) -> None:
     """Write a seeded episode of ``DualGraspLift-v0`` (scripted policy, benchmark target) as a
     GIF to ``out``."""
-    import gymnasium as gym
-    import numpy as np
-    from PIL import Image
-
-    import dg16m_env  # noqa: F401  (registers the environments)
     from dg16m_env.envs.lift.experts import ScriptedLiftPolicy
 
+    frames, _ = _lift_episode("dg16m_env/DualGraspLift-v0", ScriptedLiftPolicy(), draw=True)
+    _save_gif(frames, out)
+
+
+def render_lift_v2(out: Path) -> None:
+    """Write a seeded episode of ``DualGraspLift-v2`` driven by
+    :class:`~dg16m_env.envs.lift.experts.FeedbackLiftExpert` (the demonstrations' expert) as a
+    GIF to ``out``, after checking that ``DualGraspLift-v3`` with the same seed and object
+    gives the same observations and the same ending (v3 differs only in when success is
+    credited), so that one picture stands for both pages."""
+    import numpy as np
+
+    from dg16m_env.envs.lift.experts import FeedbackLiftExpert
+
+    drawn_id, checked_id = LIFT_V2_IDS
+    frames, drawn = _lift_episode(drawn_id, FeedbackLiftExpert(), draw=True)
+    _, checked = _lift_episode(checked_id, FeedbackLiftExpert(), draw=False)
+    same = drawn[0] == checked[0] and np.array_equal(drawn[1], checked[1])
+    if not same:
+        raise SystemExit(
+            f"{LIFT_V2_NAME}: expected {checked_id} to repeat the {drawn_id} episode "
+            f"(termination {drawn[0]!r}, {len(drawn[1]) - 1} steps), found termination "
+            f"{checked[0]!r} after {len(checked[1]) - 1} steps or other observations: draw "
+            "one picture per version"
+        )
+    print(f"{checked_id}: the same observations and ending as {drawn_id}")
+    _save_gif(frames, out)
+
+
+def _lift_episode(env_id: str, policy: Any, draw: bool) -> tuple[list[Any], tuple[str, Any]]:
+    """Run one episode of ``env_id`` (benchmark target on ``LIFT_OBJECT``, reset seed
+    ``LIFT_SEED``) with ``policy``; return its frames (one control step in ``LIFT_EVERY`` and
+    the last; none unless ``draw``) and (its termination, its observations stacked)."""
+    import gymnasium as gym
+    import numpy as np
+
+    import dg16m_env  # noqa: F401  (registers the environments)
+
     width, height = LIFT_SIZE
-    env = gym.make(
-        "dg16m_env/DualGraspLift-v0",
-        target_grasp="benchmark",
-        render_mode="rgb_array",
-        width=width,
-        height=height,
-    )
-    policy = ScriptedLiftPolicy()
+    render = {"render_mode": "rgb_array", "width": width, "height": height} if draw else {}
+    with warnings.catch_warnings():  # an older version's "out of date" warning: drawn on purpose
+        warnings.simplefilter("ignore", DeprecationWarning)
+        env = gym.make(env_id, target_grasp="benchmark", **render)
     obs, _ = env.reset(seed=LIFT_SEED, options={"object_id": LIFT_OBJECT})
-    frames = [env.render()]
+    frames = [env.render()] if draw else []
+    observations = [obs]
     step = 0
     info: dict[str, object] = {}
     while True:
         obs, _, terminated, truncated, info = env.step(policy(obs))
+        observations.append(obs)
         step += 1
-        if step % LIFT_EVERY == 0 or terminated or truncated:
+        if draw and (step % LIFT_EVERY == 0 or terminated or truncated):
             frames.append(env.render())
         if terminated or truncated:
             break
     env.close()
-    print(f"lift episode: {LIFT_OBJECT}, seed {LIFT_SEED}, {step} steps, {info['termination']!r}")
+    print(f"{env_id}: {LIFT_OBJECT}, seed {LIFT_SEED}, {step} steps, {info['termination']!r}")
+    return frames, (str(info["termination"]), np.stack(observations))
+
+
+def _save_gif(frames: list[Any], out: Path) -> None:
+    """Write ``frames`` (RGB arrays) as a looping GIF (4 frames per second, 128 colours) that
+    lingers on its last frame."""
+    import numpy as np
+    from PIL import Image
+
     images = [Image.fromarray(np.asarray(frame)).quantize(colors=128) for frame in frames]
     images += [images[-1]] * 5  # linger on the last frame
     images[0].save(
@@ -132,6 +180,7 @@ def main(argv: list[str] | None = None) -> int:
         replay.name: (lambda out, replay=replay: render_replay(replay, out)) for replay in REPLAYS
     }
     jobs[LIFT_NAME] = render_lift
+    jobs[LIFT_V2_NAME] = render_lift_v2
     unknown = set(args.only or ()) - set(jobs)
     if unknown:
         parser.error(f"--only: expected one of {sorted(jobs)}, found {sorted(unknown)}")

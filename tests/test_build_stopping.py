@@ -162,15 +162,22 @@ def test_a_decomposition_past_its_budget_is_rejected_with_its_stage_in_words(
     assert time.monotonic() - started < 60
     entry = read_manifest(tmp_path / "out")["entries"]["vase"]
     assert entry["status"] == "failed"
-    assert (entry["rejected"], entry["stage"]) == ("time budget", "decompose")
-    assert entry["verdict"].startswith(
-        "its convex decomposition (CoACD) did not end within its budget of 1 CPU s: the mesh is "
-        "too detailed or thin-walled"
+    assert (entry["rejected"], entry["stage"], entry["limit"]) == (
+        "time budget",
+        "decompose",
+        "cpu",
     )
+    # the verdict names the CPU seconds used (the CPU budget ended it) and the option to raise it
+    assert entry["cpu_seconds"] >= 1.0
+    assert entry["verdict"].startswith(
+        f"its convex decomposition (CoACD) used {entry['cpu_seconds']:.1f} CPU s, past its "
+        "budget of 1 CPU s: the mesh is too detailed or thin-walled"
+    )
+    assert entry["verdict"].endswith("raise its budget with --stage-budget decompose=SECONDS")
     assert entry["stage_seconds"]["decompose"] < 1.0 * WALL_FACTOR + 1.0
     reason = failed_entries(read_manifest(tmp_path / "out"))["vase"]
     assert reason.startswith("rejected at stage decompose: its convex decomposition (CoACD)")
-    assert "expected stage 'decompose' to finish within its budget of 1 s" in reason
+    assert "expected stage 'decompose' to finish within its budget of 1 CPU s, found it" in reason
 
 
 def test_an_object_past_its_wall_bound_is_rejected_whatever_stage(
@@ -182,7 +189,7 @@ def test_an_object_past_its_wall_bound_is_rejected_whatever_stage(
     with pytest.raises(BenchmarkError):
         build_benchmark(items, tmp_path / "out", REAL_PARAMETERS, limits=limits, progress=False)
     entry = read_manifest(tmp_path / "out")["entries"]["vase"]
-    assert entry["rejected"] == "time budget"
+    assert (entry["rejected"], entry["limit"]) == ("time budget", "object")
     assert entry["verdict"].startswith("the object did not end within its bound of 4 s of wall")
     assert sum(entry["stage_seconds"].values()) < 4.0 + 2.0
 
@@ -206,11 +213,18 @@ def test_an_object_the_gripper_cannot_hold_is_rejected_at_the_screen_in_words(
 
 
 def test_limits_words_and_bounds() -> None:
-    # The default for meshes: the real benchmark's budgets and a 10-minute object bound; the
-    # shipped real build's manifest parameters are unchanged (no object_wall_s there).
-    assert MESH_LIMITS.wall_bound_s() == 600.0
+    # The default for meshes: the real benchmark's CPU budgets and no wall bound of its own
+    # (verdicts that do not depend on load); the shipped real build's manifest parameters are
+    # unchanged (no object_wall_s there).
+    assert MESH_LIMITS == REAL_LIMITS
     assert "object_wall_s" not in REAL_LIMITS.to_dict()
-    assert MESH_LIMITS.to_dict()["object_wall_s"] == 600.0
+    assert REAL_LIMITS.to_dict() == {
+        "min_passing": 40,
+        "decompose_s": 180.0,
+        "sample_s": 120.0,
+        "label_s": 240.0,
+    }
+    assert WALL_FACTOR >= 10  # a safety net far above what load does to a CPU budget
     assert REAL_LIMITS.wall_bound_s() == pytest.approx(WALL_FACTOR * (120 + 180 + 120 + 240))
     assert BuildLimits().wall_bound_s() is None
     with pytest.raises(BenchmarkError):
@@ -224,6 +238,27 @@ def test_limits_words_and_bounds() -> None:
 
     again = pickle.loads(pickle.dumps(StageTimeoutError("label", 5.0, {"x": 1.0}, whole=True)))
     assert (again.stage, again.budget, again.whole) == ("label", 5.0, True)
+    # which limit ended the stage, in words, with the CPU seconds it had used
+    cpu = StageTimeoutError("decompose", 180.0, {}, cpu_seconds=180.24)
+    assert cpu.limit == "cpu"
+    assert timeout_verdict(cpu).startswith(
+        "its convex decomposition (CoACD) used 180.2 CPU s, past its budget of 180 CPU s: the "
+        "mesh is too detailed"
+    )
+    assert "--stage-budget decompose=SECONDS" in timeout_verdict(cpu)
+    screen = timeout_verdict(StageTimeoutError("screen", 120.0, {}, cpu_seconds=121.0))
+    assert screen.endswith("raise its budget with --stage-budget sample=SECONDS")
+    net = StageTimeoutError("decompose", 180.0, {}, cpu_seconds=113.0, wall_s=1800.0)
+    assert net.limit == "wall"
+    assert "wall-time safety net of 1800 s" in str(net)
+    assert "after only 113.0 CPU s" in str(net)
+    assert timeout_verdict(net).startswith(
+        f"its convex decomposition (CoACD) was stopped by the wall-time safety net of 1800 s "
+        f"({WALL_FACTOR:g} x its budget of 180 CPU s) after only 113.0 CPU s: a heavily loaded "
+        "machine"
+    )
+    again = pickle.loads(pickle.dumps(net))
+    assert (again.limit, again.cpu_seconds, again.wall_s) == ("wall", 113.0, 1800.0)
 
 
 def test_the_manifest_keeps_verdicts_readable(tmp_path: Path) -> None:

@@ -30,6 +30,7 @@ SUBCOMMANDS = [
     "submission",
     "baselines",
     "demo",
+    "dataset",
 ]
 
 
@@ -281,6 +282,7 @@ def test_commands_come_from_the_entry_point_group_in_a_stable_order() -> None:
         "baselines.baseline_commands:register",
         "baselines.demo:register",
         "dg16m_env.cli.benchmark:register",
+        "dg16m_env.cli.dataset:register",
         "dg16m_env.cli.demos:register",
         "dg16m_env.cli.evaluate:register",
         "dg16m_env.cli.sim:register",
@@ -291,6 +293,7 @@ def test_commands_come_from_the_entry_point_group_in_a_stable_order() -> None:
     assert names == [
         *SUBCOMMANDS[:4],
         *("generate", "stats", "verify", "baselines", "reproduce", "demo", "benchmark"),
+        "dataset",
         "demos",
         "evaluate",
         *("submission", "sim"),
@@ -509,8 +512,8 @@ def test_objects_check_suggests_scales(tmp_path: Path, capsys: pytest.CaptureFix
     trimesh.creation.box(extents=(80.0, 50.0, 30.0)).export(millimetres)
     metres = tmp_path / "box_m.obj"
     trimesh.creation.box(extents=(0.8, 0.5, 0.3)).export(metres)
-    assert main(["objects", "check", str(millimetres)]) == 1
-    assert "needs --scale 0.001" in capsys.readouterr().out
+    assert main(["objects", "check", str(millimetres)]) == 1  # 80 units: the one units rule
+    assert "needs --scale 0.01 (0.8 m" in capsys.readouterr().out
     assert main(["objects", "check", str(millimetres), "--scale", "0.001"]) == 0
     assert "0.080 x 0.050 x 0.030 m (scale 0.001)" in capsys.readouterr().out
     assert main(["objects", "check", str(millimetres), "--allow-any-size"]) == 0

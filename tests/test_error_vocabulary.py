@@ -15,7 +15,9 @@ from dg16m_env.envs import env_ids
 from dg16m_env.envs.common import EnvArgumentError
 
 MILLIMETRES = "longest side 900 m: expected 0.05-5 m for a dual-arm object"
-SCALE_HINT = "a file in millimetres needs --scale 0.001 (0.9 m)"
+SCALE_HINT = (
+    "a file in millimetres needs --scale 0.001 (0.9 m, the only unit giving a typical size)"
+)
 
 
 @pytest.fixture

@@ -83,12 +83,9 @@ def test_resume_refuses_results_of_another_run(two, tmp_path, capsys):
     assert main([*other, "--objects", OBJECTS[0], "--no-progress"]) == 2
 
 
-def test_resume_needs_out_and_a_file_subject(two, tmp_path, capsys):
+def test_resume_needs_out(two, tmp_path, capsys):
     assert main(["evaluate", str(two), "--resume", *FAST]) == 2
     assert "expected --out" in capsys.readouterr().err
-    argv = ["evaluate", "--classifier", "x.py:f", "--out", str(tmp_path / "r.json"), "--resume"]
-    assert main(argv) == 2
-    assert "found --classifier" in capsys.readouterr().err
 
 
 def test_resume_of_a_missing_file_runs_everything(two, tmp_path, capsys):

@@ -16,6 +16,7 @@ from dg16m_env.benchmark.file import read_benchmark, write_benchmark
 from dg16m_env.benchmark.names import EMBEDDED_BENCHMARK
 from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
 from dg16m_env.evaluators.classifier import ClassifierEvaluator, average_precision
+from dg16m_env.evaluators.code_identity import code_sha256
 from dg16m_env.evaluators.registry import EvaluatorError, make
 from dg16m_env.evaluators.result import EvaluationResult
 
@@ -306,6 +307,7 @@ def test_result_records_versions_and_inputs(tiny: BenchmarkRef) -> None:
         "name": None,
         "type": "builtins.function",
         "interface": "callable",
+        "sha256": code_sha256(constant),
     }
 
 

@@ -260,7 +260,7 @@ def test_generate_help_defaults_come_from_the_paper(capsys: pytest.CaptureFixtur
 def test_generate_exits_1_and_names_every_failed_object(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """A broken mesh, an 80 mm box written in millimetres (80 m: refused with the scale to use)
+    """A broken mesh, a box 80 units long (80 m: refused with the scale to use)
     and an object too small for two hands (no pairs) each fail; the run goes on and exits 1."""
     import trimesh
 
@@ -277,7 +277,8 @@ def test_generate_exits_1_and_names_every_failed_object(
     assert "1 objects ok, 2 failed" in text
     assert "failed box_mm: " in text
     assert "longest side 80 m: expected 0.05-5 m for a dual-arm object" in text
-    assert "a file in millimetres needs --scale 0.001" in text
+    # one units rule everywhere (issue 55): 80 units read as centimetres give a typical 0.8 m
+    assert "a file in centimetres needs --scale 0.01" in text
     assert "failed broken: " in text
     entries = read_manifest(out)["entries"]
     assert entries["box_mm"]["status"] == "failed"

@@ -146,6 +146,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("dg16m_env.physics",),
     ("dg16m_env.benchmark",),
     ("dg16m_env.subjects",),
+    ("dg16m_env.training",),
     ("dg16m_env.evaluators",),
     ("dg16m_env.envs",),
     ("dg16m_env.cli",),
@@ -333,6 +334,7 @@ DATASET_GEN_LAYERS: tuple[tuple[str, ...], ...] = (
     ("dataset_gen.sources",),
     ("dataset_gen.pipeline",),
     ("dataset_gen.real",),
+    ("dataset_gen.collection",),
     ("dataset_gen.cli",),
 )
 """``dataset_gen``'s floors, bottom first (see ``dataset_gen/__init__.py``); the kernel

@@ -127,7 +127,7 @@ def test_the_commands_and_environments_keep_their_entry_points() -> None:
     }
     assert commands == {
         f"dg16m_env.cli.{name}": f"dg16m_env.cli.{name}:register"
-        for name in ("benchmark", "demos", "evaluate", "sim")
+        for name in ("benchmark", "dataset", "demos", "evaluate", "sim")
     }
     for ep in metadata.entry_points(group="dg16m.commands"):
         if ep.name.startswith("dg16m_env"):

@@ -114,7 +114,9 @@ def test_migration_from_schema_1_keeps_data_and_queues_unscored(
 
     board = Board(db, create=False)
     conn = sqlite3.connect(db)
-    assert schema_version(conn) == 2
+    assert schema_version(conn) == SCHEMA_VERSION == 3
+    tracks = conn.execute("SELECT DISTINCT track, provenance FROM submissions").fetchall()
+    assert tracks == [("mesh", None)]  # every submission before tracks is mesh-track
     jobs = dict(conn.execute("SELECT submission_id, state FROM jobs").fetchall())
     assert jobs == {1: "done", 2: "queued", 3: "queued", 4: "done"}
     status = dict(conn.execute("SELECT id, status FROM submissions").fetchall())

@@ -203,6 +203,20 @@ def test_bad_arguments_are_refused(tmp_path: Path, kwargs: dict, message: str) -
     assert not (tmp_path / DEFAULT_DATASET_ID).exists()
 
 
+def test_a_relative_root_takes_more_than_one_batch(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 56: ``dg16m demos collect --out runs/demos`` (a relative root, as the docs give it)
+    failed when the second batch of episodes was added; one episode per batch here."""
+    import dg16m_env.envs.lift.demos as demos_module
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(demos_module, "FLUSH_EPISODES", 1)
+    collect_lift_demos(Path("runs/demos"), episodes=2, progress=False, env_kwargs=SHORT)
+    data = open_lift_demos(tmp_path / "runs" / "demos" / DEFAULT_DATASET_ID)
+    assert data.total_episodes == 2
+
+
 def test_v1_demonstrations_are_collected_and_replayed_on_v1(tmp_path: Path) -> None:
     """``env_id`` picks the version; the dataset records it and a replay remakes that env."""
     report = collect_lift_demos(

@@ -91,7 +91,7 @@ BROKEN = {
     "missing": (None, "no such file"),
     "directory": ("DIR", "found a directory"),
     "unsupported.xyz": ("1 2 3\n", "unsupported mesh format '.xyz'"),
-    "empty.obj": ("", r"empty \(0 bytes\)"),
+    "empty.obj": ("", r"expected a mesh with faces, found an empty file \(0 bytes\)"),
     "points_only.obj": ("v 0 0 0\nv 1 0 0\nv 0 1 0\n", "no faces"),
     "nan.obj": (TETRA.replace("v 0 1 0", "v nan 1 0"), "1 vertices with NaN"),
     "inf.obj": (TETRA.replace("v 0 0 1", "v 0 0 inf"), "0 vertices with NaN and 1 with inf"),
@@ -140,14 +140,15 @@ def test_absurd_and_tiny_extents_are_rejected_with_a_hint(tmp_path: Path) -> Non
 
 
 def test_a_box_in_millimetres_is_not_an_80_m_object(tmp_path: Path) -> None:
-    """An 80 mm box exported in millimetres reads as 80 m: refused, with the scale to use."""
+    """An 80 mm box exported in millimetres reads as 80 m: refused, with the scale the one units
+    rule gives 80 units (0.8 m in centimetres, what 'objects repair' guesses too)."""
     path = tmp_path / "box_mm.obj"
     trimesh.creation.box(extents=(80.0, 50.0, 30.0)).export(path)
     with pytest.raises(MeshError) as info:
         load_object(path)
     message = str(info.value)
     assert message.startswith(f"{path}: longest side 80 m: expected 0.05-5 m for a dual-arm")
-    assert "a file in millimetres needs --scale 0.001 (0.08 m)" in message
+    assert "a file in centimetres needs --scale 0.01 (0.8 m, the only unit giving" in message
     assert "--allow-any-size" in message
     assert load_object(path, scale=0.001).extents.max() == pytest.approx(0.08)
     assert load_object(path, allow_any_size=True).extents.max() == pytest.approx(80.0)
@@ -157,7 +158,8 @@ def test_a_box_in_millimetres_is_not_an_80_m_object(tmp_path: Path) -> None:
     ("extents", "scale", "hint"),
     [
         ((0.8, 0.5, 0.3), 0.001, "seems to be in metres already, so --scale 0.001 looks wrong"),
-        ((8.0, 5.0, 3.0), None, "a file in centimetres needs --scale 0.01"),
+        ((8.0, 5.0, 3.0), None, "cannot guess the units (8 m in metres, 0.08 m in centimetres"),
+        ((100.0, 1.0, 0.5), None, "a file in centimetres needs --scale 0.01 (1 m"),
         ((0.02, 0.01, 0.01), None, "pass --scale or --target-extent"),
         ((1e5, 1.0, 1.0), None, "pass --scale or --target-extent"),
     ],

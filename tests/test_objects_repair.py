@@ -177,14 +177,15 @@ def test_the_units_guess_refuses_ambiguous_sizes(
         assert (decision.how, decision.units) == ("guessed", units), longest
         assert TYPICAL_EXTENT_M[0] <= decision.longest_side_m <= TYPICAL_EXTENT_M[1]
 
-    # objects check's scale hint no longer calls the 9.02-unit chair a centimetre file silently
+    # objects check's scale hint follows the same rule: the 9.02-unit chair is asked about
     raw = tmp_path / "raw"
     raw.mkdir()
     trimesh.creation.box(extents=(9.02, 4.5, 4.5)).export(raw / "chair.obj")
     assert main(["objects", "check", str(raw / "chair.obj")]) == 1
     assert (
-        "needs --scale 0.01 (0.0902 m); that is small for a dual-arm object: if the units are "
-        "unknown, run 'dg16m objects repair' with --units or --target-extent"
+        "cannot guess the units (9.02 m in metres, 0.0902 m in centimetres, 9.02 mm in "
+        "millimetres; none in the typical 0.3-2 m of a dual-arm object): pass --scale or "
+        "--target-extent ('dg16m objects check' and 'objects repair' take --units m|cm|mm|inch"
     ) in capsys.readouterr().out
 
     # through the command: the chair fails with its reason, the others are repaired, exit 1;
@@ -218,7 +219,8 @@ def test_broken_files_fail_alone(tmp_path: Path, capsys: pytest.CaptureFixture[s
     out = tmp_path / "out"
     assert main(["objects", "repair", str(raw), "--out", str(out), *FAST]) == 1
     captured = capsys.readouterr()
-    assert "FAIL b_empty.obj: the file is empty (0 bytes)" in captured.out
+    assert "FAIL b_empty.obj: expected a mesh with faces, found an empty file" in captured.out
+    assert "--units" not in captured.err  # no units advice for broken files
     assert "FAIL c_points.obj: expected a triangle mesh, found PointCloud" in captured.out
     assert "FAIL d_nan.obj: expected finite vertex coordinates, found 1 vertices with NaN" in (
         captured.out

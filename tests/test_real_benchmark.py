@@ -7,6 +7,9 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import os
+import pickle
+import signal
 import time
 from pathlib import Path
 from typing import Any
@@ -17,7 +20,13 @@ import pytest
 import trimesh
 
 from dataset_gen.objects.decomposition import DecompositionParameters, object_parts
-from dg16m_core.budget import StageTimeoutError, run_with_budget
+from dg16m_core.budget import (
+    RLIMIT_MARGIN_S,
+    WALL_FACTOR,
+    StageCrashError,
+    StageTimeoutError,
+    run_with_budget,
+)
 from dg16m_core.cli import main as cli_main
 from dg16m_core.errors import MeshError
 from dg16m_env.benchmark.build import BuildLimits, build_benchmark
@@ -221,13 +230,17 @@ def test_shipped_split_has_300_benchmark_ids_disjoint_from_training() -> None:
 def _staged(seconds: float, fail: str = "", *, on_stage: Any) -> str:
     on_stage("quick")
     on_stage("slow")
+    end = time.process_time() + seconds
+    while time.process_time() < end:  # burn CPU: the budgets are CPU seconds
+        pass
     if fail == "error":
         raise MeshError("a broken mesh")
     if fail == "crash":
         raise KeyError("a bug")
-    end = time.process_time() + seconds
-    while time.process_time() < end:  # burn CPU: the budgets are CPU seconds
-        pass
+    if fail == "segv":  # compiled code crashing: no answer, a signal
+        os.kill(os.getpid(), signal.SIGSEGV)
+    if fail == "exit":
+        os._exit(3)
     return "done"
 
 
@@ -239,13 +252,18 @@ def _sleeper(*, on_stage: Any) -> str:
 
 def test_budget_stops_a_stage_that_runs_past_it() -> None:
     start = time.monotonic()
-    with pytest.raises(StageTimeoutError, match="'slow' to finish within its budget of 1 s") as e:
+    with pytest.raises(
+        StageTimeoutError, match="'slow' to finish within its budget of 1 CPU s, found it still"
+    ) as e:
         run_with_budget(_staged, (60.0,), {"slow": 1.0})
-    assert e.value.stage == "slow"
+    assert (e.value.stage, e.value.limit) == ("slow", "cpu")
+    assert e.value.cpu_seconds >= 1.0  # the CPU seconds it had used
     assert time.monotonic() - start < 30  # killed, not waited for
-    with pytest.raises(StageTimeoutError) as e:  # no CPU spent: stopped at 4 x in wall time
-        run_with_budget(_sleeper, (), {"waiting": 0.5})
-    assert e.value.stage == "waiting"
+    with pytest.raises(StageTimeoutError, match="wall-time safety net") as e:
+        run_with_budget(_sleeper, (), {"waiting": 0.2})  # no CPU spent: the wall net stops it
+    assert (e.value.stage, e.value.limit) == ("waiting", "wall")
+    assert e.value.wall_s == pytest.approx(WALL_FACTOR * 0.2)
+    assert e.value.cpu_seconds < 0.2
     # a stage that ends past its budget before the first poll is past it all the same
     with pytest.raises(StageTimeoutError, match="'slow' to finish within its budget") as e:
         run_with_budget(_staged, (0.5,), {"slow": 0.05}, poll_s=120.0)
@@ -257,6 +275,27 @@ def test_budget_stops_a_stage_that_runs_past_it() -> None:
         run_with_budget(_staged, (0.0, "error"), {})
     with pytest.raises(RuntimeError, match="KeyError: 'a bug'"):
         run_with_budget(_staged, (0.0, "crash"), {})
+
+
+def test_budget_reports_a_crashed_child_and_the_kernels_cpu_limit() -> None:
+    # a child killed by a signal, or ending without an answer, is a StageCrashError (a verdict
+    # for the caller), not a RuntimeError
+    with pytest.raises(StageCrashError, match=r"signal 11 \(SIGSEGV, segmentation fault\)") as e:
+        run_with_budget(_staged, (0.3, "segv"), {"slow": 30.0})
+    assert (e.value.stage, e.value.signal, e.value.exit_code) == ("slow", signal.SIGSEGV, None)
+    assert e.value.cpu_seconds >= 0.3
+    assert set(e.value.stage_times) == {"start", "quick", "slow"}
+    again = pickle.loads(pickle.dumps(e.value))
+    assert (again.stage, again.signal, again.cpu_seconds) == ("slow", 11, e.value.cpu_seconds)
+    with pytest.raises(StageCrashError, match="exit status 3 and no answer") as e:
+        run_with_budget(_staged, (0.0, "exit"), {})
+    assert (e.value.signal, e.value.exit_code) == (None, 3)
+    # the parent looks only every 120 s: the child's RLIMIT_CPU (budget + margin) stops it with
+    # SIGXCPU, reported as its CPU budget, not as a crash
+    with pytest.raises(StageTimeoutError) as e:
+        run_with_budget(_staged, (60.0,), {"slow": 0.5}, poll_s=120.0)
+    assert (e.value.stage, e.value.limit) == ("slow", "cpu")
+    assert e.value.cpu_seconds == pytest.approx(0.5 + RLIMIT_MARGIN_S, abs=1.0)
 
 
 # --------------------------------------------------------------------------------------------

@@ -63,9 +63,18 @@ def _register_inspect(subparsers: Any) -> None:
         "inspect",
         "Validate a grasp file (DG16M release schema or ACRONYM) and print a summary.",
         "  dg16m inspect ../shared/data/real/dg16m_airplane.h5\n"
-        "  dg16m inspect ../shared/data/real/acronym_mug_10f6e090.h5\n",
+        "  dg16m inspect ../shared/data/real/acronym_mug_10f6e090.h5\n"
+        "  dg16m inspect runs/dg16m/grasps/table-0000000.h5 --dataset runs/dg16m\n",
     )
     inspect.add_argument("file", type=Path, help="HDF5 grasp file")
+    inspect.add_argument(
+        "--dataset",
+        type=Path,
+        default=None,
+        help="also check that the file is the one this dataset folder ('dg16m dataset build') "
+        "lists for its object (same sha256); a file inside a dataset folder is checked "
+        "against it without this option",
+    )
     inspect.set_defaults(handler=_inspect)
 
 
@@ -126,12 +135,20 @@ def _show(args: argparse.Namespace) -> int:
 
 def _inspect(args: argparse.Namespace) -> int:
     from dataset_gen import io
+    from dataset_gen.collection.build import check_member, dataset_folder_of
 
     kind = io.detect_format(args.file)
     if kind == "acronym":
         _print_acronym(args.file, io.read_acronym(args.file))
         return 0
     _print_dg16m(args.file, io.read_dg16m(args.file))
+    folder = args.dataset if args.dataset is not None else dataset_folder_of(args.file)
+    if folder is not None:
+        entry = check_member(folder, args.file)
+        print(
+            f"  dataset       {folder}: object {args.file.stem} ({entry['split']} split, "
+            f"{entry['origin'].get('source')}), sha256 as built"
+        )
     return 0
 
 

@@ -95,7 +95,8 @@ def _register_objects_check(actions: Any) -> None:
         "check",
         "Load mesh files as dg16m would and report size, mass properties and defects.",
         "  dg16m objects check ../shared/data/real/dg16m_airplane.obj\n"
-        "  dg16m objects check box_in_millimetres.obj --scale 0.001\n"
+        "  dg16m objects check raw_meshes/            # every mesh file in the folder\n"
+        "  dg16m objects check box_in_millimetres.obj --units mm   # or --scale 0.001\n"
         "  dg16m objects check ../shared/data/real/acronym_mug_10f6e090.obj \\\n"
         "      --scale 0.000268 --allow-any-size   # a single-arm object\n",
         description=(
@@ -103,15 +104,33 @@ def _register_objects_check(actions: Any) -> None:
             "whether each is a watertight solid or a shell (open, or in pieces that do not close "
             "a volume) with what 'benchmark build' will do with it: a shell is simulated with "
             "its mass spread over the surface and voxel-remeshed by CoACD; 'dg16m objects "
-            "repair' makes it a solid first. A longest side outside the plausible range of a dual-arm object (0.05-5 m) is an "
-            "error that suggests a --scale (files in millimetres need --scale 0.001) unless "
-            "--allow-any-size is given. Exit status: 0 when every mesh loads, 1 otherwise."
+            "repair' makes it a solid first. Folders are expanded to the mesh files in them (not "
+            "recursive). A longest side outside the plausible range of a dual-arm object "
+            "(0.05-5 m) is an error that suggests a --scale (files in millimetres need --scale "
+            "0.001) unless --allow-any-size is given; without --units or --scale the file is "
+            "read as metres and checked against the units rule of 'objects repair' (the same "
+            "guess, a warning for a table-sized object of a unitless OBJ/STL/PLY/OFF file). Each "
+            "mesh's up axis is reported as 'objects repair' would take it (--up): 'benchmark "
+            "build' reads every file z up, so repair a y-up file first. Exit status: 0 when every "
+            "mesh loads, 1 otherwise."
         ),
     )
-    check.add_argument("meshes", nargs="+", type=Path, help="mesh files (OBJ, STL, PLY, OFF, GLB)")
+    check.add_argument(
+        "meshes",
+        nargs="+",
+        type=Path,
+        help="mesh files (OBJ, STL, PLY, OFF, GLB, GLTF), or folders of them",
+    )
     scale = check.add_mutually_exclusive_group()
     scale.add_argument(
         "--scale", type=float, default=None, help="factor applied to file coordinates"
+    )
+    scale.add_argument(
+        "--units",
+        choices=("m", "cm", "mm", "inch"),
+        default=None,
+        help="the files' unit (as 'objects repair --units'; default: read as metres and "
+        "checked against the units guess)",
     )
     scale.add_argument(
         "--target-extent", type=float, default=None, help="scale so the longest side is this many m"
@@ -124,6 +143,7 @@ def _register_objects_check(actions: Any) -> None:
     check.add_argument(
         "--mass", type=float, default=PAPER.mass, help=f"kg (default: {PAPER.mass:g})"
     )
+    _add_up_argument(check)
     check.set_defaults(handler=_objects_check)
 
 
@@ -371,18 +391,22 @@ def _objects_repair_description() -> str:
     return (
         "Read mesh files (a folder of them, not recursive, or single files: "
         f"{', '.join(s.lstrip('.').upper() for s in INPUT_SUFFIXES)}; COLLADA needs pycollada), "
-        "bring each to metres and rebuild it as the Sweet Home 3D importer does: one watertight "
+        "bring each to metres, turn it z up (--up) and rebuild it as the Sweet Home 3D importer "
+        "does: one watertight "
         "body (filled-voxel remesh, largest piece, Taubin smoothing, stepwise quadric "
         "decimation), its deviation from the source measured both ways. A mesh that is already "
         "one watertight body within the face budget is only scaled. Writes OUT/<stem>.obj and "
-        "OUT/manifest.json (per mesh: the source file and its sha256, the units decision, the "
+        "OUT/manifest.json (per mesh: the source file and its sha256, the up axis, the units "
+        "decision, the "
         "operations applied, the deviation, the OBJ's sha256), so that 'dg16m benchmark build "
         "--meshes OUT' reads the folder. Units per mesh: --units, or --target-extent (the "
         "longest side in m), or a guess among metres, centimetres and millimetres that is "
         f"taken only when exactly one of them gives a longest side of {low:g}-{high:g} m, "
         "printed for every mesh; any other size is refused with what each unit would make of "
         f"it (a 9-unit chair: 9 m or 9 cm?). Given units must give {DUAL_ARM_MIN_EXTENT_M:g}-"
-        f"{DUAL_ARM_MAX_EXTENT_M:g} m. A mesh that fails (unreadable, empty, NaN coordinates, "
+        f"{DUAL_ARM_MAX_EXTENT_M:g} m; a guess that makes an OBJ/STL/PLY/OFF file (no units) "
+        "longer than 1.5 m is printed with a warning. A mesh that fails (unreadable, empty, NaN "
+        "coordinates, "
         "units refused, repair failed) is reported with its reason and the others go on. "
         "Reruns keep the meshes already repaired from the same source with the same options "
         "and redo the rest, so a failed mesh can be rerun alone with its own --units. Exit "
@@ -411,8 +435,20 @@ def _objects_repair_arguments(command: argparse.ArgumentParser) -> None:
         metavar="METRES",
         help="scale every mesh to this longest side (m)",
     )
+    _add_up_argument(command)
     _add_remesh_arguments(command, "mesh")
     command.set_defaults(handler=_objects_repair)
+
+
+def _add_up_argument(command: argparse.ArgumentParser) -> None:
+    command.add_argument(
+        "--up",
+        choices=("auto", "y", "z"),
+        default="auto",
+        help="the files' up axis; every mesh is written z up, a y-up one turned +90 deg about x "
+        "(default auto: z for meshes dg16m wrote, else the format's convention: OBJ and "
+        "GLB/glTF y up, STL, PLY, OFF and 3MF z up, COLLADA its <up_axis>)",
+    )
 
 
 def _objects_repair(args: argparse.Namespace) -> int:
@@ -438,6 +474,7 @@ def _objects_repair(args: argparse.Namespace) -> int:
         units=args.units,
         target_extent=args.target_extent,
         params=params,
+        up=args.up,
         workers=args.workers,
         progress=not args.no_progress,
         on_entry=report,
@@ -460,14 +497,25 @@ def _objects_repair(args: argparse.Namespace) -> int:
             f"(repaired to source, p95) {d10:.1f} / {d50:.1f} / {d90:.1f} mm"
         )
     if run.failed:
+        units = [i for i in run.failed if _failure_kind(entries[i]) == "units"]
+        advice = (  # only a units failure is fixed by --units (not an empty or broken file)
+            f"; rerun {', '.join(units)} alone with its own --units or --target-extent"
+            if units
+            else ""
+        )
         print(
             f"{len(run.failed)} failed: {', '.join(run.failed)} (reasons above and in the "
-            "manifest; rerun a file alone with its own --units or --target-extent)",
+            f"manifest{advice})",
             file=sys.stderr,
         )
         return 1
     print(f"next: dg16m benchmark build --meshes {args.out} --out OUT")
     return 0
+
+
+def _failure_kind(entry: Any) -> str | None:
+    """``error_kind`` of a failed entry, or of the failure kept beside an earlier mesh."""
+    return entry.get("error_kind") or entry.get("last_failure", {}).get("error_kind")
 
 
 def _objects_make(args: argparse.Namespace) -> int:
@@ -509,24 +557,30 @@ def _objects_show(args: argparse.Namespace) -> int:
 
 
 def _objects_check(args: argparse.Namespace) -> int:
-    from dataset_gen.objects.grasp_object import load_object
+    from dataset_gen.objects.grasp_object import MESH_SUFFIXES, UNIT_FACTORS, load_object
+    from dataset_gen.real.own_meshes import find_meshes
 
     mass = check_number("--mass", args.mass, error=MeshError)
-    missing = [str(p) for p in args.meshes if not Path(p).is_file()]
-    if missing:  # nothing to check: bad input (exit 2), as for every command
-        raise MeshError(f"expected mesh files, found nothing at {', '.join(missing)}")
+    # folders expand to their mesh files; nothing to check is bad input (exit 2)
+    meshes, skipped = find_meshes(args.meshes, MESH_SUFFIXES, one_per_stem=False)
+    folders = [str(p) for p in args.meshes if Path(p).is_dir()]
+    if folders:
+        others = f" (skipped {len(skipped)} other files)" if skipped else ""
+        print(f"found {len(meshes)} mesh files in {', '.join(folders)}{others}")
+    scale = UNIT_FACTORS[args.units] if args.units else args.scale
     failures = 0
     kinds = {"solid": 0, "shell": 0}
-    for path in args.meshes:
+    y_up = []
+    for path in meshes:
         try:
             obj = load_object(
                 path,
-                scale=args.scale,
+                scale=scale,
                 target_extent=args.target_extent,
                 mass=mass,
                 allow_any_size=args.allow_any_size,
             )
-        except MeshError as exc:
+        except MeshError as exc:  # an empty or unreadable file: its own error, no units advice
             failures += 1
             print(f"FAIL {exc}")
             continue
@@ -534,17 +588,82 @@ def _objects_check(args: argparse.Namespace) -> int:
         kinds[kind] += 1
         print(f"ok   {path}: {describe_object(obj)}")
         print(f"     {verdict}")
+        lines, axis = _units_and_up(path, obj, args)
+        for line in lines:
+            print(f"     {line}")
+        if axis == "y":
+            y_up.append(path.stem)
     counts = [f"{kinds['solid']} solid", f"{kinds['shell']} shell", f"{failures} failed"]
-    print(f"{len(args.meshes)} meshes: {', '.join(counts)}")
+    print(f"{len(meshes)} meshes: {', '.join(counts)}")
     if kinds["shell"]:
         print(
             "to make the shells watertight solids: dg16m objects repair FOLDER_OR_FILES "
             "--out REPAIRED (then build from REPAIRED)"
         )
+    if y_up:
+        print(
+            f"{len(y_up)} y up ({', '.join(y_up[:5])}{', ...' if len(y_up) > 5 else ''}): "
+            "'benchmark build' would simulate them on their side; 'dg16m objects repair' "
+            "writes them z up"
+        )
     if failures:
-        print(f"{failures} of {len(args.meshes)} meshes failed", file=sys.stderr)
+        print(f"{failures} of {len(meshes)} meshes failed", file=sys.stderr)
         return 1
     return 0
+
+
+def _units_and_up(path: Path, obj: Any, args: argparse.Namespace) -> tuple[list[str], str]:
+    """What ``objects check`` assumed of a loaded mesh's units (the one units rule of
+    ``objects repair``) and up axis (:func:`~dataset_gen.real.orientation.up_axis`), as lines for
+    people, and the up axis."""
+    from dataset_gen.objects.grasp_object import (
+        UNIT_NAMES,
+        UNITS_FLAG,
+        guess_units,
+        large_guess_warning,
+        unit_readings,
+    )
+    from dataset_gen.real.orientation import up_axis, written_by_dg16m
+
+    lines = []
+    origin = written_by_dg16m(path)
+    if args.units:
+        lines.append(f"units given: {UNIT_NAMES[args.units]}")
+    elif origin is not None and args.scale is None and args.target_extent is None:
+        lines.append(f"units: metres ({origin})")
+    elif args.scale is None and args.target_extent is None:
+        longest = float(max(obj.extents))  # file units: read as metres
+        unit = guess_units(longest)
+        if unit == "m":
+            lines.append("units: metres (guessed: the only unit giving a typical size)")
+            warning = large_guess_warning("m", obj.extents, path.suffix)
+            if warning:
+                lines.append(f"WARNING {warning}")
+        elif unit is None:
+            lines.append(
+                f"units: read as metres, but 'objects repair' would not guess them "
+                f"({unit_readings(longest)}); pass {UNITS_FLAG} if they are not metres"
+            )
+        else:  # only with --allow-any-size: out of the dual-arm range in metres
+            lines.append(
+                f"units: read as metres, but the units guess is {UNIT_NAMES[unit]}; pass "
+                f"--units {unit} if so"
+            )
+    axis = up_axis(path, args.up)
+    height = float(obj.extents[1 if axis.axis == "y" else 2])
+    stands = (
+        "'benchmark build' reads files z up, so it would lie on its side: 'dg16m objects "
+        "repair' turns it z up"
+        if axis.axis == "y"
+        else "stands as 'benchmark build' reads it"
+    )
+    other = "z" if axis.axis == "y" else "y"
+    hint = f"; pass --up {other} if wrong" if axis.how == "assumed" else ""
+    lines.append(
+        f"up axis {axis.axis} ({axis.how}: {axis.why}{hint}): {height:.3f} m tall along "
+        f"{axis.axis}; {stands}"
+    )
+    return lines, axis.axis
 
 
 def solid_or_shell(mesh: Any) -> tuple[str, str]:
@@ -580,6 +699,56 @@ def solid_or_shell(mesh: Any) -> tuple[str, str]:
         "its surface; CoACD voxel-remeshes it before decomposing, so its hulls stand off the "
         "surface); run 'dg16m objects repair' first to make it one watertight solid"
     )
+
+
+def _decompose_in_child(
+    mesh: Any,
+    params: Any,
+    cache_dir: Path | None,
+    use_cache: bool,
+    name: str,
+    samples: int,
+    *,
+    on_stage: Any,
+) -> tuple[Any, Any]:
+    """One mesh's CoACD parts and their report, in the child of :func:`_decompose_stoppable`."""
+    from dataset_gen.objects import decomposition as dec
+
+    on_stage("decompose")
+    stats: dict[str, Any] = {}
+    parts = dec.convex_decomposition(
+        mesh, params=params, cache_dir=cache_dir, use_cache=use_cache, name=name, stats=stats
+    )
+    on_stage("report")
+    report = dec.decomposition_report(mesh, parts, samples=samples, stats=stats, name=name)
+    return parts, report
+
+
+def _decompose_stoppable(
+    mesh: Any, params: Any, cache_dir: Path | None, use_cache: bool, name: str, samples: int
+) -> tuple[Any, Any]:
+    """:func:`_decompose_in_child` in a child process (no budget), so that Ctrl-C and SIGTERM
+    stop a CoACD run within a second (compiled code does not see them in its own process) and a
+    crash of CoACD is an error with the signal, not the end of this command.
+
+    Raises:
+        MeshError: CoACD's child crashed (the signal, the CPU seconds, what to try).
+    """
+    from dg16m_core.budget import StageCrashError, run_with_budget
+    from dg16m_core.stopping import sigterm_interrupts
+
+    try:
+        with sigterm_interrupts():  # SIGTERM stops it as Ctrl-C does (exit 130)
+            done = run_with_budget(
+                _decompose_in_child, (mesh, params, cache_dir, use_cache, name, samples), {}
+            )
+    except StageCrashError as exc:
+        raise MeshError(
+            f"{name}: {exc}; try a coarser or thicker mesh (dg16m objects repair with fewer "
+            "--target-faces or a larger --pitch-fraction) or other settings (--preprocess on, "
+            "another --threshold)"
+        ) from None
+    return done.value
 
 
 def _objects_decompose(args: argparse.Namespace) -> int:
@@ -618,17 +787,8 @@ def _objects_decompose(args: argparse.Namespace) -> int:
             file=sys.stderr,
             flush=True,
         )
-        stats: dict[str, Any] = {}
-        parts = dec.convex_decomposition(
-            obj.mesh,
-            params=params,
-            cache_dir=args.cache_dir,
-            use_cache=not args.no_cache,
-            name=str(path),
-            stats=stats,
-        )
-        report = dec.decomposition_report(
-            obj.mesh, parts, samples=samples, stats=stats, name=str(path)
+        parts, report = _decompose_stoppable(
+            obj.mesh, params, args.cache_dir, not args.no_cache, str(path), samples
         )
         print(report.format(), flush=True)
         entries.append((path, obj, parts, report))

@@ -7,7 +7,7 @@ Manifest (``manifest.json``, one per dataset folder)
     {
       "format": "dg16m-manifest",
       "schema_version": 1,
-      "kind": "objects" | "grasps" | "benchmark",
+      "kind": "objects" | "grasps" | "benchmark" | "dataset" | ...,  # MANIFEST_KINDS
       "created_by": "dg16m <version>",
       "parameters": {...},                       # any JSON object
       "entries": {
@@ -47,7 +47,15 @@ MANIFEST_NAME = "manifest.json"
 
 MANIFEST_FORMAT = "dg16m-manifest"
 
-MANIFEST_KINDS = ("objects", "grasps", "benchmark", "sweethome3d-import", "mesh-repair")
+MANIFEST_KINDS = (
+    "objects",
+    "grasps",
+    "benchmark",
+    "sweethome3d-import",
+    "mesh-repair",
+    "dataset",
+    "pybullet-import",
+)
 MANIFEST_STATUSES = ("ok", "failed")
 _MANIFEST_KEYS = ("format", "schema_version", "kind", "created_by", "parameters", "entries")
 _WINDOWS_DRIVE = re.compile(r"^[A-Za-z]:")

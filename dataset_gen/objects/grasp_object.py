@@ -57,16 +57,75 @@ usually in millimetres (an 80 mm box read as 80 m)."""
 
 TYPICAL_EXTENT_M = (0.3, 2.0)
 """Longest sides (m) of the things two arms typically lift (the benchmark's objects are
-0.3-1.2 m). ``dg16m objects repair`` guesses a file's units only when exactly one of metres,
-centimetres and millimetres puts it here (:func:`dataset_gen.real.own_meshes.decide_units`); a
-scale suggested for a size outside it says so (a 9.02-unit chair is not a 9 cm chair)."""
+0.3-1.2 m). The one units rule (:func:`guess_units`) takes a unit among metres, centimetres and
+millimetres only when exactly one of them puts a file here: ``dg16m objects repair``
+(:func:`dataset_gen.real.own_meshes.decide_units`), ``objects check`` and the size check of
+``benchmark build`` and ``generate`` (:func:`check_dual_arm_size`) all use it, so a 100-unit bar
+is read as 1 m in centimetres by each (never as 0.1 m in millimetres by one of them)."""
 
-UNIT_SCALES: tuple[tuple[float, str], ...] = (
-    (1.0, "metres"),
-    (0.001, "millimetres"),
-    (0.01, "centimetres"),
-)
-"""Scales suggested for an implausible size, in order of preference, with the units they read."""
+UNIT_FACTORS: Mapping[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254}
+"""Metres per file unit, by the name ``--units`` takes."""
+
+UNIT_NAMES: Mapping[str, str] = {
+    "m": "metres",
+    "cm": "centimetres",
+    "mm": "millimetres",
+    "inch": "inches",
+}
+
+GUESSED_UNITS = ("m", "cm", "mm")
+"""The units the one units rule (:func:`guess_units`) chooses among, in order."""
+"""Units :func:`guess_units` considers; inches are never guessed (an inch file's 8-80 units
+read as plausible centimetres or metres just as often)."""
+
+ARBITRARY_UNIT_SUFFIXES = (".obj", ".stl", ".ply", ".off")
+"""Mesh formats whose coordinates carry no unit (GLB/glTF and 3MF are metres or say theirs)."""
+
+LARGE_GUESS_M = 1.5
+"""A guessed unit that makes an arbitrary-unit file longer than this (m, table-sized) is warned
+about (:func:`large_guess_warning`): two arms lift few things that large."""
+
+UNITS_FLAG = "--units m|cm|mm|inch"
+"""The option that gives a file's unit, as the units advice names it."""
+
+
+def _fitting_units(longest: float) -> list[str]:
+    low, high = TYPICAL_EXTENT_M
+    return [u for u in GUESSED_UNITS if low <= float(longest) * UNIT_FACTORS[u] <= high]
+
+
+def guess_units(longest: float) -> str | None:
+    """The one units rule: the unit of :data:`GUESSED_UNITS` that gives ``longest`` file units
+    a longest side in :data:`TYPICAL_EXTENT_M`, or ``None`` when none or several do."""
+    fits = _fitting_units(longest)
+    return fits[0] if len(fits) == 1 else None
+
+
+def unit_readings(longest: float) -> str:
+    """What each guessed unit makes of ``longest`` file units, for a refused guess."""
+    low, high = TYPICAL_EXTENT_M
+    readings = ", ".join(
+        f"{_length(longest * UNIT_FACTORS[u])} in {UNIT_NAMES[u]}" for u in GUESSED_UNITS
+    )
+    fits = _fitting_units(longest)
+    found = "none" if not fits else f"{len(fits)} of them"
+    return f"{readings}; {found} in the typical {low:g}-{high:g} m of a dual-arm object"
+
+
+def large_guess_warning(unit: str, extents_m: Sequence[float], suffix: str) -> str | None:
+    """The warning for a guessed ``unit`` that makes an arbitrary-unit file (``suffix`` in
+    :data:`ARBITRARY_UNIT_SUFFIXES`) table-sized (longest of ``extents_m`` > :data:`LARGE_GUESS_M`),
+    else ``None``."""
+    longest = float(max(extents_m))
+    if suffix.lower() not in ARBITRARY_UNIT_SUFFIXES or longest <= LARGE_GUESS_M:
+        return None
+    sides = " x ".join(f"{v:.2f}" for v in extents_m)
+    return (
+        f"guessed {UNIT_NAMES[unit]}: the object is {longest:.2g} m long ({sides} m), large for "
+        f"two arms, and {suffix.lstrip('.').upper()} files have no units; pass {UNITS_FLAG} "
+        "if that is wrong"
+    )
+
 
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".off", ".glb", ".gltf")
 """File types :func:`load_mesh` accepts (anything trimesh reads among these)."""
@@ -242,7 +301,7 @@ def load_mesh(path: str | os.PathLike[str]) -> tuple[trimesh.Trimesh, CleaningRe
             f"expected one of {', '.join(MESH_SUFFIXES)}"
         )
     if path.stat().st_size == 0:
-        raise MeshError(f"{path}: the file is empty (0 bytes)")
+        raise MeshError(f"{path}: expected a mesh with faces, found an empty file (0 bytes)")
     vertices, faces = read_mesh_arrays(path)
     return clean_mesh(vertices, faces, name=str(path))
 
@@ -536,7 +595,7 @@ def check_dual_arm_size(
     """Raise :class:`MeshError` unless ``mesh`` (file units) scaled as asked has a longest side in
     [:data:`DUAL_ARM_MIN_EXTENT_M`, :data:`DUAL_ARM_MAX_EXTENT_M`].
 
-    The message says what was found and suggests a scale from :data:`UNIT_SCALES` that puts the
+    The message says what was found and suggests the scale of :func:`guess_units` that puts the
     object in range (dropping ``--scale`` when the file is already in metres). Invalid ``scale``
     or ``target_extent`` values are left to :func:`make_object`, which names them.
     """
@@ -563,28 +622,24 @@ def check_dual_arm_size(
 
 
 def _scale_hint(longest: float, scale: float | None) -> str:
-    """Suggest a scale from :data:`UNIT_SCALES` that puts ``longest`` file units in range."""
+    """Suggest the scale the one units rule (:func:`guess_units`) gives ``longest`` file units."""
     current = 1.0 if scale is None else float(scale)
-    for factor, units in UNIT_SCALES:
-        if factor == current or not (
-            DUAL_ARM_MIN_EXTENT_M <= longest * factor <= DUAL_ARM_MAX_EXTENT_M
-        ):
-            continue
-        if factor == 1.0:
-            return (
-                f"the file's own units give {_length(longest)}: it seems to be in metres "
-                f"already, so --scale {current:g} looks wrong (drop it)"
-            )
-        size = longest * factor
-        low, high = TYPICAL_EXTENT_M
-        atypical = ""
-        if not low <= size <= high:
-            atypical = (
-                f"; that is {'small' if size < low else 'large'} for a dual-arm object: if the "
-                "units are unknown, run 'dg16m objects repair' with --units or --target-extent"
-            )
-        return f"a file in {units} needs --scale {factor:g} ({_length(size)}){atypical}"
-    return "pass --scale or --target-extent to give it a plausible size"
+    unit = guess_units(longest)
+    if unit is None:
+        return (
+            f"cannot guess the units ({unit_readings(longest)}): pass --scale or --target-extent "
+            f"('dg16m objects check' and 'objects repair' take {UNITS_FLAG} too)"
+        )
+    factor = UNIT_FACTORS[unit]
+    if factor == 1.0:
+        return (
+            f"the file's own units give {_length(longest)}: it seems to be in metres "
+            f"already, so --scale {current:g} looks wrong (drop it)"
+        )
+    return (
+        f"a file in {UNIT_NAMES[unit]} needs --scale {factor:g} ({_length(longest * factor)}, "
+        "the only unit giving a typical size)"
+    )
 
 
 def _length(metres: float) -> str:

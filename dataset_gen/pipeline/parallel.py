@@ -15,6 +15,7 @@ from __future__ import annotations
 import os
 import signal
 import threading
+import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
@@ -229,6 +230,7 @@ def run_resumable(
     progress: bool = True,
     desc: str = "objects",
     on_entry: Callable[[str, dict[str, Any]], None] | None = None,
+    write_every_s: float = 0.0,
 ) -> dict[str, Any]:
     """Run ``task(item, *args)`` for every item not yet finished in ``root``; return the manifest.
 
@@ -238,6 +240,12 @@ def run_resumable(
     ``folders`` by killed atomic writes are removed first, and again once every task returned
     (on Ray a task whose node died is retried on another node; its killed attempt may have left
     one).
+
+    ``write_every_s``: the manifest is rewritten after each entry (0, the default) or at most
+    this often (s), and always when the run ends or is interrupted: a folder of thousands of
+    objects would otherwise spend more time rewriting its manifest than making objects. A run
+    killed outright (``kill -9``) then loses the record of at most that many seconds of objects;
+    their files are written again, with the same bytes, by the next run.
 
     Raises:
         Dg16mError: the class passed as ``error``, for a bad worker count or backend, duplicate
@@ -286,6 +294,8 @@ def run_resumable(
             desc=desc,
             smoothing=0.05,
         )
+    written = time.monotonic()
+    unwritten = False
     try:
         # SIGTERM stops the run as Ctrl-C does: the pool and budget children stop, finished
         # objects stay recorded (a server with its own SIGTERM handling is not affected)
@@ -294,7 +304,10 @@ def run_resumable(
             try:
                 for item, entry in results:
                     manifest["entries"][item.object_id] = entry
-                    write_manifest(root, manifest)  # sorted keys: the bytes do not depend on order
+                    unwritten = True
+                    if time.monotonic() - written >= write_every_s:
+                        write_manifest(root, manifest)  # sorted keys: bytes independent of order
+                        written, unwritten = time.monotonic(), False
                     if on_entry is not None:
                         on_entry(item.object_id, entry)
                     if bar is not None:
@@ -304,6 +317,8 @@ def run_resumable(
             finally:
                 results.close()  # stops a pool at once (its workers are terminated)
     finally:
+        if unwritten:  # the end of the run, or an interrupt: record what finished
+            write_manifest(root, manifest)
         if bar is not None:
             bar.close()
     # Every task of this run has returned. On Ray a worker killed mid-write (its node lost) left

@@ -197,3 +197,45 @@ def render_objects(
         ax.set_title(f"{label}\n{ext[0]:.2f} x {ext[1]:.2f} x {ext[2]:.2f} m", fontsize=8)
     fig.tight_layout()
     return save_png(fig, out, dpi=dpi)
+
+
+def render_grasp_sheet(
+    items: Sequence[tuple[str, trimesh.Trimesh, np.ndarray]],
+    out: str | os.PathLike[str],
+    *,
+    gripper: str | GripperModel = "panda",
+    columns: int = 4,
+    title: str = "",
+    view: tuple[float, float] = (25.0, -60.0),
+    dpi: int = 100,
+) -> Path:
+    """Contact sheet of objects, each with a few of its passing dual grasps, as a PNG.
+
+    Args:
+        items: ``(label, mesh, poses)``: the panel's title, the object (object frame, m) and
+            (k, 2, 4, 4) dual grasps drawn on it (k may be 0).
+        out: PNG path (written atomically).
+        gripper: the model whose skeleton is drawn.
+        columns: panels per row.
+    """
+    if not items:
+        raise ValueError("render_grasp_sheet: expected at least one object, found none")
+    model = get_gripper(gripper)
+    skeleton = model.skeleton().reshape(-1, 3)
+    columns = max(1, min(columns, len(items)))
+    rows = -(-len(items) // columns)
+    fig = new_figure(3.4 * columns, 3.4 * rows + 0.6)
+    for i, (label, mesh, poses) in enumerate(items):
+        ax = fig.add_subplot(rows, columns, i + 1, projection="3d")
+        ax.add_collection3d(_mesh_collection(mesh, color=(0.6, 0.68, 0.85), alpha=0.6))
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 2, 4, 4)
+        for rank, pose in enumerate(poses):
+            color = matplotlib.colormaps["tab10"](rank % 10)
+            _draw_dual_grasp(ax, model, pose, skeleton, color, None)
+        drawn = transform_points(poses, skeleton).reshape(-1, 3) if len(poses) else None
+        _setup_axes(ax, mesh, drawn, view)
+        ax.set_title(label, fontsize=8)
+    if title:
+        fig.suptitle(title, fontsize=11)
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.96 if title else 1.0), h_pad=2.5)
+    return save_png(fig, out, dpi=dpi)

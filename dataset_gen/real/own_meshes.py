@@ -1,16 +1,31 @@
 """Your own loose mesh files made into a mesh folder for ``dg16m benchmark build``.
 
-``dg16m objects repair IN --out DIR`` (:func:`repair_meshes`) takes mesh files (a folder of
-them, or single files) whose units and quality are unknown and writes, per mesh, ``DIR/<stem>.obj``:
-one watertight body in metres with at most ``target_faces`` faces, made by the importer's
+``dg16m objects repair IN --out DIR`` (:func:`repair_meshes`) takes mesh files (a folder of them, or
+single files) whose units, up axis and quality are unknown and writes, per mesh, ``DIR/<stem>.obj``:
+one watertight body in metres, z up, with at most ``target_faces`` faces, made by the importer's
 measured repair (:func:`dataset_gen.real.repair.repair_mesh`: filled-voxel remesh, largest piece,
-Taubin smoothing, half-voxel inset, stepwise quadric decimation), with its deviation from the
-source surface measured both ways (:func:`dataset_gen.real.repair.surface_deviation`). A mesh that is
-already one watertight body within the face budget is only scaled: repair only what needs it.
-``DIR/manifest.json`` (kind :data:`REPAIR_KIND`, written atomically after every mesh) records
-per mesh the source file and its sha256, the units decision, the operations applied in words,
-the repair report, the deviation and the sha256 of the OBJ written. ``DIR`` holds nothing else,
-so ``dg16m benchmark build --meshes DIR`` reads it as any folder of meshes in metres.
+Taubin smoothing, half-voxel inset, stepwise quadric decimation), with its deviation from the source
+surface measured both ways (:func:`dataset_gen.real.repair.surface_deviation`). A mesh that is
+already one watertight body within the face budget is only turned and scaled: repair only what needs
+it. ``DIR/manifest.json`` (kind :data:`REPAIR_KIND`, written atomically after every mesh) records
+per mesh the source file and its sha256, the up axis and the units decision (with ``warnings``), the
+operations applied in words, the repair report, the deviation and the sha256 of the OBJ written.
+``DIR`` holds nothing else, so ``dg16m benchmark build --meshes DIR`` reads it as any folder of
+meshes in metres.
+
+Up axis, per mesh (:func:`~dataset_gen.real.orientation.up_axis`)
+----------------------------------------------------------------
+Every mesh is written z up (gravity along -z in the simulator). ``--up y|z`` gives the sources' up
+axis; ``--up auto`` (the default) takes z for a mesh dg16m wrote (a folder whose ``manifest.json``
+dg16m wrote, or an OBJ whose header comment names dg16m), a COLLADA file's ``<up_axis>``, else the
+format's convention: OBJ y up (the convention of the applications that write it: Sweet Home 3D,
+Blender's default export), GLB/glTF y up (the specification; trimesh reads the coordinates as they
+are, it does not turn them), STL, PLY, OFF and 3MF z up. A y-up mesh is turned +90 degrees about x
+(:data:`~dataset_gen.real.orientation.Y_UP_TO_Z_UP`, the turn of the Sweet Home 3D importer), before
+the units are decided (a rotation keeps the longest side). The axis and how it was decided (given,
+detected, assumed) are printed and stored per mesh (``up``); ``up`` is part of the request a rerun
+compares, so a changed ``--up``, or an entry of a version without it, redoes the mesh instead of
+mixing axes.
 
 Units, per mesh (:func:`decide_units`)
 --------------------------------------
@@ -20,7 +35,7 @@ that longest side. The result must lie in the dual-arm range
 :data:`~dataset_gen.objects.grasp_object.DUAL_ARM_MAX_EXTENT_M`] (0.05-5 m) either way. Without either flag
 the unit is guessed, and the guess is refused rather than made wrong:
 
-* the candidates are metres, centimetres and millimetres (:data:`GUESSED_UNITS`); inches are
+* the candidates are metres, centimetres and millimetres (:data:`~dataset_gen.objects.grasp_object.GUESSED_UNITS`); inches are
   never guessed (an inch file's 8-80 units read as plausible centimetres or metres just as
   often): pass ``--units inch``;
 * a candidate is taken when the longest side it gives lies in
@@ -31,16 +46,25 @@ the unit is guessed, and the guess is refused rather than made wrong:
   200-300 units: a 2.3 m sofa in centimetres or a 23 cm box in millimetres?) are asked about;
 * no candidate in range: the mesh fails with the longest side it found, what each unit would
   make of it and the flags to pass. A chair of 9.02 units (9.02 m, or 9.02 cm) is asked about,
-  never told to be centimetres; an armchair of 2.1 units is asked about, not taken as 2.1 m.
+  never told to be centimetres; an armchair of 2.1 units is asked about, not taken as 2.1 m;
+* a guess that makes a file of a unitless format (OBJ, STL, PLY, OFF) longer than
+  :data:`~dataset_gen.objects.grasp_object.LARGE_GUESS_M` (1.5 m, table-sized) is kept with a
+  warning (:func:`~dataset_gen.objects.grasp_object.large_guess_warning`).
+
+The guess is :func:`~dataset_gen.objects.grasp_object.guess_units`, the one rule that ``objects
+check`` and the size check of ``benchmark build`` and ``generate`` use too (a 100-unit bar is
+1 m in centimetres for each). Only a units failure (:class:`UnitsError`, the entry's
+``error_kind`` ``"units"``) is told to rerun with ``--units``; an empty or unreadable file fails
+with its own reason.
 
 The decision and what it assumed are printed for every mesh and stored in the manifest.
 Measured on 60 raw Sweet Home 3D models (catalogue sizes known; ``bench/objects_repair.py``):
 see BENCHMARKS.md ("Your own meshes").
 
 Reruns: a mesh whose manifest entry is ok, made from a source with the same sha256 and the same
-request (units flags, repair settings), whose OBJ is still there with its recorded sha256, is
-kept; every other mesh is (re)done. So ``dg16m objects repair raw/chair.obj --out DIR --units cm``
-after a run that asked about the chair's units repairs only the chair. Nothing already written
+request (units flags, up axis, repair settings), whose OBJ is still there with its recorded sha256,
+is kept; every other mesh is (re)done. So ``dg16m objects repair raw/chair.obj --out DIR --units
+cm`` after a run that asked about the chair's units repairs only the chair. Nothing already written
 is lost: a mesh that fails where an earlier run repaired it keeps the earlier OBJ and entry, with
 the failure added as ``last_failure`` (the run still lists it as failed). One writer per folder.
 """
@@ -63,11 +87,17 @@ from dataset_gen.objects.grasp_object import (
     DUAL_ARM_MIN_EXTENT_M,
     MESH_SUFFIXES,
     TYPICAL_EXTENT_M,
+    UNIT_FACTORS,
+    UNIT_NAMES,
     CleaningReport,
     clean_mesh,
+    guess_units,
+    large_guess_warning,
     load_mesh,
     read_mesh_arrays,
+    unit_readings,
 )
+from dataset_gen.real.orientation import UP_CHOICES, UpAxis, turn_z_up, up_axis
 from dataset_gen.real.repair import (
     RepairParameters,
     RepairReport,
@@ -84,19 +114,6 @@ from dg16m_core.hashing import file_sha256
 REPAIR_KIND = "mesh-repair"
 """``kind`` of the manifest of a folder written by :func:`repair_meshes`."""
 
-UNIT_FACTORS: Mapping[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254}
-"""Metres per file unit, by the name ``--units`` takes."""
-
-UNIT_NAMES: Mapping[str, str] = {
-    "m": "metres",
-    "cm": "centimetres",
-    "mm": "millimetres",
-    "inch": "inches",
-}
-
-GUESSED_UNITS = ("m", "cm", "mm")
-"""Units the guess considers (module docstring: inches are never guessed)."""
-
 INPUT_SUFFIXES = (*MESH_SUFFIXES, ".3mf", ".dae")
 """Mesh files ``objects repair`` reads: what ``objects check`` reads, and 3MF; COLLADA
 (``.dae``) when pycollada is installed (else each such file fails with the reason)."""
@@ -107,6 +124,11 @@ DEVIATION_SAMPLES = 5000
 
 class RepairInputError(MeshError):
     """Bad input to a whole repair run (no meshes, two files for one name, a bad ``--out``)."""
+
+
+class UnitsError(MeshError):
+    """A mesh's units cannot be guessed, or the given units make an implausible size: the one
+    failure that ``--units`` or ``--target-extent`` fixes."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -196,26 +218,19 @@ def decide_units(
             raise MeshError(f"--units: expected one of {', '.join(UNIT_FACTORS)}, found {units!r}")
         size = longest * UNIT_FACTORS[units]
         if not low <= size <= high:
-            raise MeshError(
+            raise UnitsError(
                 f"{name}: longest side {_number(longest)} units, {_length(size)} in "
                 f"{UNIT_NAMES[units]}: expected {low:g}-{high:g} m for a dual-arm object; pass "
                 f"other --units or --target-extent METRES"
             )
         return UnitsDecision("given", units, UNIT_FACTORS[units], longest, size)
-    typical_low, typical_high = TYPICAL_EXTENT_M
-    fits = [u for u in GUESSED_UNITS if typical_low <= longest * UNIT_FACTORS[u] <= typical_high]
-    if len(fits) == 1:
-        unit = fits[0]
+    unit = guess_units(longest)  # the one rule, shared with objects check and build
+    if unit is not None:
         factor = UNIT_FACTORS[unit]
         return UnitsDecision("guessed", unit, factor, longest, longest * factor)
-    readings = ", ".join(
-        f"{_length(longest * UNIT_FACTORS[u])} in {UNIT_NAMES[u]}" for u in GUESSED_UNITS
-    )
-    found = "none" if not fits else f"{len(fits)} of them"
-    raise MeshError(
-        f"{name}: longest side {_number(longest)} units: cannot guess the units ({readings}; "
-        f"{found} in the typical {typical_low:g}-{typical_high:g} m of a dual-arm object); pass "
-        f"{_FLAGS}"
+    raise UnitsError(
+        f"{name}: longest side {_number(longest)} units: cannot guess the units "
+        f"({unit_readings(longest)}); pass {_FLAGS}"
     )
 
 
@@ -253,7 +268,7 @@ def read_source(path: Path) -> tuple[trimesh.Trimesh, CleaningReport]:
                 "(pip install pycollada, or export the mesh as OBJ, PLY or GLB)"
             ) from None
     if path.stat().st_size == 0:
-        raise MeshError(f"{path}: the file is empty (0 bytes)")
+        raise MeshError(f"{path}: expected a mesh with faces, found an empty file (0 bytes)")
     vertices, faces = read_mesh_arrays(path)
     return clean_mesh(vertices, faces, name=str(path))
 
@@ -264,12 +279,15 @@ def operations(
     report: RepairReport | None,
     params: RepairParameters,
     faces: int,
+    up: UpAxis | None = None,
 ) -> list[str]:
     """What was done to a source, in order, in words (the manifest's ``operations``)."""
     done = []
     words = cleaning.words()
     if words:
         done.append(f"cleaned: {words}")
+    if up is not None and up.axis == "y":
+        done.append(f"turned from y up to z up, +90 deg about x (up axis {up.how}: {up.why})")
     how = {"guessed": "units guessed", "given": "units given"}.get(units.how, "target extent")
     unit = f": {UNIT_NAMES[units.units]}" if units.units else ""
     done.append(
@@ -302,17 +320,22 @@ def repair_one(
     units: str | None,
     target_extent: float | None,
     params: RepairParameters,
+    up: str = "auto",
 ) -> dict[str, Any]:
-    """Repair one source into ``out/<id>.obj``; returns its manifest entry (``status`` "ok",
-    or "failed" with ``error``). Never raises for a bad mesh: a broken file, no faces, NaN
+    """Repair one source into ``out/<id>.obj``, turned z up from its up axis
+    (:func:`~dataset_gen.real.orientation.up_axis` of ``up``); returns its manifest entry
+    (``status`` "ok", or "failed" with ``error`` and ``error_kind``: ``"units"`` for a
+    :class:`UnitsError`, else ``"mesh"``). Never raises for a bad mesh: a broken file, no faces, NaN
     vertices, units that cannot be guessed or a repair that fails are the entry's ``error``."""
     start = time.perf_counter()
     path = Path(item.path)
     entry: dict[str, Any] = {
         "source": {"file": str(path), "sha256": item.sha256},
-        "request": request_of(units, target_extent, params),
+        "request": request_of(units, target_extent, params, up),
     }
     try:
+        axis = up_axis(path, up)
+        entry["up"] = axis.to_dict()
         mesh, cleaning = read_source(path)
         entry["source"].update(
             faces=len(mesh.faces),
@@ -325,11 +348,18 @@ def repair_one(
             float(np.max(mesh.extents)), units=units, target_extent=target_extent, name=path.name
         )
         entry["units"] = decision.to_dict()
-        scaled = mesh.copy()
+        scaled = turn_z_up(mesh, axis.axis).copy()
         scaled.apply_scale(decision.scale)
+        if decision.how == "guessed":
+            assert decision.units is not None
+            warning = large_guess_warning(decision.units, scaled.extents, path.suffix)
+            if warning:
+                entry["warnings"] = [warning]
         repaired, report = _repair(scaled, params)
         rng = np.random.default_rng(object_seed(0, f"mesh-repair-deviation:{item.sha256}"))
         deviation = surface_deviation(repaired, scaled, samples=DEVIATION_SAMPLES, rng=rng)
+    except UnitsError as exc:
+        return _failed(entry, str(exc), path, start, "units")
     except Dg16mError as exc:
         return _failed(entry, str(exc), path, start)
     except Exception as exc:  # a third-party library's error on odd input: this mesh only
@@ -338,7 +368,7 @@ def repair_one(
     text = repaired.export(file_type="obj", include_normals=False, include_texture=False)
     header = (
         f"# {item.object_id}: repaired by dg16m objects repair from {path.name} "
-        f"(sha256 {item.sha256[:16]}...), metres; see manifest.json\n"
+        f"(sha256 {item.sha256[:16]}...), metres, z up; see manifest.json\n"
     )
     data = (header + text).encode()
     name = f"{item.object_id}.obj"
@@ -351,14 +381,16 @@ def repair_one(
         "extents_m": [float(v) for v in repaired.extents],
         "faces": len(repaired.faces),
         "volume_m3": float(repaired.volume),
-        "operations": operations(decision, cleaning, report, params, len(repaired.faces)),
+        "operations": operations(decision, cleaning, report, params, len(repaired.faces), axis),
         "repair": None if report is None else {**params.to_dict(), **report.to_dict()},
         "deviation_m": deviation.to_dict(),
         "seconds": time.perf_counter() - start,
     }
 
 
-def _failed(entry: dict[str, Any], error: str, path: Path, start: float) -> dict[str, Any]:
+def _failed(
+    entry: dict[str, Any], error: str, path: Path, start: float, kind: str = "mesh"
+) -> dict[str, Any]:
     for prefix in (f"{path}: ", f"{path.name}: "):  # the entry names its file already
         if error.startswith(prefix):
             error = error[len(prefix) :]
@@ -367,6 +399,7 @@ def _failed(entry: dict[str, Any], error: str, path: Path, start: float) -> dict
         "status": "failed",
         "files": {},
         "error": error,
+        "error_kind": kind,
         "seconds": time.perf_counter() - start,
     }
 
@@ -384,12 +417,17 @@ def _repair(
 
 
 def request_of(
-    units: str | None, target_extent: float | None, params: RepairParameters
+    units: str | None,
+    target_extent: float | None,
+    params: RepairParameters,
+    up: str = "auto",
 ) -> dict[str, Any]:
-    """What a run asked for one mesh: a kept mesh must have been made with the same."""
+    """What a run asked for one mesh: a kept mesh must have been made with the same (an entry
+    of an older version, without ``up``, is redone: it was written with the source's axis)."""
     return {
         "units": units,
         "target_extent_m": None if target_extent is None else float(target_extent),
+        "up": up,
         "repair": params.to_dict(),
     }
 
@@ -399,14 +437,19 @@ def request_of(
 # --------------------------------------------------------------------------------------------
 
 
-def find_meshes(inputs: Sequence[str | Path]) -> tuple[list[Path], list[Path]]:
+def find_meshes(
+    inputs: Sequence[str | Path],
+    suffixes: Sequence[str] = INPUT_SUFFIXES,
+    one_per_stem: bool = True,
+) -> tuple[list[Path], list[Path]]:
     """The mesh files named by ``inputs`` (folders, not recursive, and single files), sorted
     per folder, and the other files of those folders (skipped: ``.mtl``, textures, notes, hidden
-    files).
+    files). ``suffixes``: the mesh files' suffixes (``objects check`` reads
+    :data:`~dataset_gen.objects.grasp_object.MESH_SUFFIXES`).
 
     Raises:
         RepairInputError: an input that is missing or is a file of another kind, no mesh file at
-            all, or two files for one object id (the file stem).
+            all, or (``one_per_stem``) two files for one object id (the file stem).
     """
     meshes: list[Path] = []
     skipped: list[Path] = []
@@ -416,12 +459,12 @@ def find_meshes(inputs: Sequence[str | Path]) -> tuple[list[Path], list[Path]]:
             for child in sorted(path.iterdir()):
                 if not child.is_file():
                     continue
-                is_mesh = child.suffix.lower() in INPUT_SUFFIXES and not child.name.startswith(".")
+                is_mesh = child.suffix.lower() in suffixes and not child.name.startswith(".")
                 (meshes if is_mesh else skipped).append(child)
         elif path.is_file():
-            if path.suffix.lower() not in INPUT_SUFFIXES:
+            if path.suffix.lower() not in suffixes:
                 raise RepairInputError(
-                    f"{path}: expected a folder or a mesh file ({', '.join(INPUT_SUFFIXES)}), "
+                    f"{path}: expected a folder or a mesh file ({', '.join(suffixes)}), "
                     f"found a {path.suffix or 'suffix-less'} file"
                 )
             meshes.append(path)
@@ -436,11 +479,11 @@ def find_meshes(inputs: Sequence[str | Path]) -> tuple[list[Path], list[Path]]:
     if not meshes:
         others = f" (only {len(skipped)} other files)" if skipped else ""
         raise RepairInputError(
-            f"{', '.join(map(str, inputs))}: expected mesh files ({', '.join(INPUT_SUFFIXES)}), "
+            f"{', '.join(map(str, inputs))}: expected mesh files ({', '.join(suffixes)}), "
             f"found none{others}"
         )
     stems: dict[str, Path] = {}
-    for path in meshes:
+    for path in meshes if one_per_stem else ():
         if path.stem in stems:
             raise RepairInputError(
                 f"expected one mesh file per object id (the file stem), found {stems[path.stem]} "
@@ -522,6 +565,7 @@ def repair_meshes(
     units: str | None = None,
     target_extent: float | None = None,
     params: RepairParameters | None = None,
+    up: str = "auto",
     workers: int = 1,
     progress: bool = True,
     on_entry: Callable[[str, Mapping[str, Any], bool], None] | None = None,
@@ -534,6 +578,8 @@ def repair_meshes(
         units: the files' unit (a key of :data:`UNIT_FACTORS`); ``None`` guesses per mesh.
         target_extent: scale every mesh to this longest side (m) instead.
         params: the repair's settings (default: the importer's).
+        up: the sources' up axis, ``"y"`` or ``"z"``, or ``"auto"`` (per file,
+            :func:`~dataset_gen.real.orientation.up_axis`); every mesh is written z up.
         workers: processes (1: this one).
         progress: show a progress bar over the meshes.
         on_entry: called with ``(object_id, entry, kept)`` for every mesh, as it is done (or at
@@ -544,7 +590,7 @@ def repair_meshes(
 
     Raises:
         RepairInputError: bad input as a whole (see :func:`find_meshes`, a bad ``out``, bad
-            ``units`` or ``target_extent``); nothing is written then.
+            ``units``, ``target_extent`` or ``up``); nothing is written then.
     """
     from dataset_gen.io import new_manifest, write_manifest
     from dataset_gen.pipeline.parallel import (
@@ -562,6 +608,8 @@ def repair_meshes(
         raise RepairInputError(
             f"--units: expected one of {', '.join(UNIT_FACTORS)}, found {units!r}"
         )
+    if up not in UP_CHOICES:
+        raise RepairInputError(f"--up: expected one of {', '.join(UP_CHOICES)}, found {up!r}")
     if target_extent is not None:
         low, high = DUAL_ARM_MIN_EXTENT_M, DUAL_ARM_MAX_EXTENT_M
         if not (isinstance(target_extent, (int, float)) and low <= target_extent <= high):
@@ -579,7 +627,7 @@ def repair_meshes(
         )
     out.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(out, (".",))
-    request = request_of(units, target_extent, params)
+    request = request_of(units, target_extent, params, up)
     items = [RepairItem(p.stem, str(p), file_sha256(p)) for p in meshes]
     run = RepairRun(out, manifest, [], [], [], skipped)
     todo = []
@@ -599,7 +647,7 @@ def repair_meshes(
     try:
         with remembered_interrupts() as interrupted:
             results = run_tasks(
-                repair_one, todo, (str(out), units, target_extent, params), workers=workers
+                repair_one, todo, (str(out), units, target_extent, params, up), workers=workers
             )
             try:
                 for item, entry in results:
@@ -607,7 +655,9 @@ def repair_meshes(
                     if entry["status"] != "ok" and _still_there(out, earlier):
                         # nothing written is lost: the earlier mesh stays, with this failure
                         assert earlier is not None
-                        failure = {k: entry[k] for k in ("source", "request", "error")}
+                        failure = {
+                            k: entry[k] for k in ("source", "request", "error", "error_kind")
+                        }
                         manifest["entries"][item.object_id] = {**earlier, "last_failure": failure}
                         entry = {**entry, "kept_earlier": earlier["files"]["mesh"]}
                     else:
@@ -643,12 +693,14 @@ def entry_line(object_id: str, entry: Mapping[str, Any], kept: bool = False) -> 
     state = "watertight" if src["watertight"] else "not watertight"
     pieces = f"{src['pieces']} piece{'s' if src['pieces'] != 1 else ''}"
     what = "kept from an earlier run" if kept else f"{entry['seconds']:.1f} s"
+    warnings = "".join(f"\n     WARNING {w}" for w in entry.get("warnings", ()))
+    up = f"{entry['up']['note']}; " if "up" in entry else ""
     return (
-        f"ok   {source} -> {entry['files']['mesh']}: {entry['units']['note']}; source "
+        f"ok   {source} -> {entry['files']['mesh']}: {up}{entry['units']['note']}; source "
         f"{src['faces']} faces, {pieces}, {state} -> one watertight body of {entry['faces']} "
         f"faces, {' x '.join(f'{v:.3f}' for v in entry['extents_m'])} m; deviation mean "
         f"{1000 * dev['to_source_mean']:.1f} mm, p95 {1000 * dev['to_source_p95']:.1f} mm "
-        f"(source to repaired p95 {1000 * dev['from_source_p95']:.1f} mm); {what}"
+        f"(source to repaired p95 {1000 * dev['from_source_p95']:.1f} mm); {what}{warnings}"
     )
 
 

@@ -55,6 +55,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from dataset_gen.real.orientation import Y_UP_TO_Z_UP
 from dataset_gen.real.repair import RepairParameters, repair_mesh, surface_deviation
 from dataset_gen.sources.object_source import object_seed
 from dg16m_core.atomic import write_bytes_atomic, write_text_atomic
@@ -390,9 +391,6 @@ def read_model(entry: CatalogEntry, root: str | Path = DEFAULT_ROOT) -> trimesh.
     return trimesh.Trimesh(loaded.vertices, loaded.faces, process=True)
 
 
-_Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
-
-
 def catalog_mesh(
     entry: CatalogEntry, mesh: trimesh.Trimesh, seed: int
 ) -> tuple[trimesh.Trimesh, dict[str, Any]]:
@@ -412,7 +410,7 @@ def catalog_mesh(
         )
     catalogue = np.array([entry.width, entry.height, entry.depth]) / 100.0  # model x, y, z
     axis_scale = catalogue / extents
-    vertices = (vertices * axis_scale) @ _Y_UP_TO_Z_UP.T
+    vertices = (vertices * axis_scale) @ Y_UP_TO_Z_UP.T  # as objects repair --up y
     longest = target_longest_side(entry, seed)
     scale = longest / float(np.ptp(vertices, axis=0).max())
     vertices *= scale

@@ -8,6 +8,7 @@ budgets for real meshes (:class:`BuildLimits`), as resumable tasks over a proces
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, replace
@@ -25,6 +26,7 @@ from dataset_gen.io import (
 )
 from dataset_gen.objects.decomposition import (
     MIN_RELATIVE_HULL_VOLUME,
+    DecompositionParameters,
     decomposition_report,
     object_parts,
 )
@@ -35,7 +37,12 @@ from dataset_gen.pipeline.parallel import Backend, run_resumable
 from dataset_gen.sources.object_source import (
     object_seed,
 )
-from dg16m_core.budget import WALL_FACTOR, StageTimeoutError, run_with_budget
+from dg16m_core.budget import (
+    WALL_FACTOR,
+    StageCrashError,
+    StageTimeoutError,
+    run_with_budget,
+)
 from dg16m_core.checks import check_integer, check_number
 from dg16m_core.errors import Dg16mError
 from dg16m_env.benchmark.arms import (
@@ -58,6 +65,13 @@ from dg16m_env.benchmark.model import (
     hand_line_distance,
 )
 from dg16m_env.benchmark.sources import BenchmarkSource
+from dg16m_env.benchmark.verdicts import (
+    crash_verdict,
+    kept_rejections,
+    rejection_entry,
+    seconds,
+    timeout_verdict,
+)
 from dg16m_env.physics.labels import row_seeds, success_probability
 from dg16m_env.physics.reseat import reseat_poses, shift_summary
 from dg16m_env.physics.scene import compile_scene
@@ -105,6 +119,22 @@ def _no_stage(name: str) -> None:
     del name
 
 
+FALLBACK_SEED_STEP = 1
+"""The decomposition fallback's seed is the settings' seed plus this (:func:`fallback_decomposition`)."""
+
+
+def fallback_decomposition(params: BenchmarkParameters) -> DecompositionParameters:
+    """The settings a build tries once when CoACD crashed on a mesh with ``params``' own: the
+    same ones with CoACD's next seed (``seed + 1``), so its search tries other cutting planes
+    (a crash in CoACD's triangulation of a cut, as on a thin-walled vase with coacd 1.0.14,
+    depends on the planes) at the same concavity threshold, hence the same fidelity to the
+    mesh. Deterministic. (CoACD's own voxel remesh, ``preprocess="on"``, was not chosen: at
+    its resolution of 50 cells it closes or thickens walls of a few mm, and it ran for minutes
+    at the default threshold on a plain box.)"""
+    current = params.decomposition or DecompositionParameters()
+    return replace(current, seed=(current.seed + FALLBACK_SEED_STEP) % 2**32)
+
+
 def benchmark_object(
     item: BenchmarkSource,
     params: BenchmarkParameters,
@@ -112,6 +142,7 @@ def benchmark_object(
     *,
     min_passing: int = 0,
     on_stage: Callable[[str], None] | None = None,
+    decompose_fallback: bool = False,
 ) -> Benchmark:
     """Choose, optionally re-seat (``item.reseat_max``; the summary goes to
     ``metadata["reseat"]``) and simulate one object's dual grasps on ``simulator`` (default C
@@ -126,6 +157,8 @@ def benchmark_object(
         on_stage: called with ``"load"``, ``"screen"`` (only with ``min_passing``),
             ``"decompose"``, ``"sample"`` and ``"label"`` as the work enters each (for time
             budgets, :func:`dg16m_core.budget.run_with_budget`).
+        decompose_fallback: decompose with :func:`fallback_decomposition` (after CoACD crashed
+            on this mesh with the parameters' settings).
     """
     stage = on_stage or _no_stage
     stage("load")
@@ -137,6 +170,9 @@ def benchmark_object(
         # authoritative, so the size is not second-guessed.
         source = replace(source, scale=data.object_scale, allow_any_size=True)
     obj = source.load(params.mass)
+    decomposition = params.decomposition_kwargs()
+    if decompose_fallback:
+        decomposition = {"params": fallback_decomposition(params)}
     if min_passing and data is None:
         stage("screen")
         grasps, found = screen_counts(obj, params)
@@ -148,7 +184,7 @@ def benchmark_object(
                 screen_verdict(grasps, found, min_passing, PANDA.max_opening),
             )
     stage("decompose")
-    parts = object_parts(obj, **params.decomposition_kwargs())
+    parts = object_parts(obj, **decomposition)
     if params.hull_grid is not None and not obj.parts:
         parts = grid_parts(parts, params.hull_grid, obj.mesh.vertices)
     stage("sample")
@@ -251,18 +287,26 @@ class BuildLimits:
         sample_s: CPU seconds for sampling, pairing and force closure (and the screening).
         label_s: CPU seconds for the trials.
         object_wall_s: wall seconds for the whole object, all stages together (None = no such
-            bound): what a loaded machine cannot stretch.
+            bound; a loaded machine stretches wall time, so such a bound makes verdicts depend
+            on load: the defaults have none).
 
     Budgets are the child process's CPU seconds (:func:`dg16m_core.budget.run_with_budget`),
-    not wall time, so that a loaded machine does not reject what a quiet one admits (and
-    :data:`~dg16m_core.budget.WALL_FACTOR` times the budget in wall time stops a stage that
-    waits).
+    not wall time, so that a loaded machine does not reject what a quiet one admits: the same
+    mesh gets the same verdict at any load. :data:`~dg16m_core.budget.WALL_FACTOR` times a
+    budget in wall time is only a safety net for a stage that waits or hangs; its verdict says
+    so, and a resumed build redoes such an object. ``dg16m benchmark build --stage-budget
+    STAGE=SECONDS`` sets them (:meth:`with_stage_budgets`).
 
     An object past a budget is stopped (its child process is killed) and recorded as failed
-    with ``rejected: "time budget"`` and the stage; one with too few pairs with ``rejected:
-    "too few passing pairs"``; each with a ``verdict`` in words. With any budget, and for every
-    mesh object, the object runs in a child process (:func:`dg16m_core.budget.run_with_budget`;
-    about 2 s to start) that Ctrl-C and SIGTERM stop at once.
+    with ``rejected: "time budget"``, the stage, which ``limit`` ended it (``"cpu"``, ``"wall"``
+    or ``"object"``) and the ``cpu_seconds`` it had used; one whose child crashed (a signal,
+    out of memory) with ``rejected: "crashed"``, the ``signal`` or ``exit_code`` and the
+    ``cpu_seconds`` (a crash in CoACD is retried once with :func:`fallback_decomposition`
+    within what is left of the budget, recorded under ``decompose_fallback``); one with too
+    few pairs with ``rejected: "too few passing pairs"``; each with a ``verdict`` in words.
+    With any budget, and for every mesh object, the object runs in a child process
+    (:func:`dg16m_core.budget.run_with_budget`; about 2 s to start) that Ctrl-C and SIGTERM stop
+    at once.
 
     The bound on one object's wall time: ``object_wall_s`` where set, else the sum over its
     stages of :data:`~dg16m_core.budget.WALL_FACTOR` times each budget (``screen`` takes
@@ -307,54 +351,128 @@ class BuildLimits:
             del values["object_wall_s"]
         return values
 
+    def with_stage_budgets(self, budgets: Sequence[str]) -> BuildLimits:
+        """These limits with the budgets of ``STAGE=SECONDS`` texts (``--stage-budget``; the
+        stages of :data:`BUDGET_STAGES`, CPU seconds > 0; a later text for the same stage
+        wins).
+
+        Raises:
+            BenchmarkError: not ``STAGE=SECONDS``, an unknown stage, or not seconds > 0.
+        """
+        changes: dict[str, float] = {}
+        for text in budgets:
+            stage, sep, seconds = str(text).partition("=")
+            if not sep:
+                raise BenchmarkError(
+                    f"--stage-budget: expected STAGE=SECONDS (e.g. decompose=600), found {text!r}"
+                )
+            if stage not in BUDGET_STAGES:
+                raise BenchmarkError(
+                    f"--stage-budget: expected one of {', '.join(BUDGET_STAGES)} (the screen "
+                    f"shares sample's budget), found {stage!r}"
+                )
+            try:
+                value = float(seconds)
+            except ValueError:
+                value = math.nan
+            if not (math.isfinite(value) and value > 0):
+                raise BenchmarkError(
+                    f"--stage-budget {stage}: expected CPU seconds > 0, found {seconds!r}"
+                )
+            changes[BUDGET_STAGES[stage]] = value
+        return replace(self, **changes)
+
+
+BUDGET_STAGES = {"decompose": "decompose_s", "sample": "sample_s", "label": "label_s"}
+"""The stages ``--stage-budget`` names, each with its :class:`BuildLimits` field (the screen
+takes ``sample_s``)."""
+
 
 def _budgeted_object(
     item: BenchmarkSource,
     params: BenchmarkParameters,
     simulator: Simulator,
     min_passing: int,
+    decompose_fallback: bool = False,
     *,
     on_stage: Callable[[str], None],
 ) -> Benchmark:
-    return benchmark_object(item, params, simulator, min_passing=min_passing, on_stage=on_stage)
-
-
-STAGE_WORDS = {
-    "start": "starting the worker process",
-    "load": "loading the mesh",
-    "screen": "the screening (grasps sampled on the mesh and paired)",
-    "decompose": "its convex decomposition (CoACD)",
-    "sample": "sampling grasps and pairing them",
-    "label": "its MuJoCo trials",
-}
-"""Each stage of :func:`benchmark_object` in words, for verdicts."""
-
-STAGE_ADVICE = {
-    "decompose": "the mesh is too detailed or thin-walled for the decomposition; simplify it "
-    "(fewer faces, thicker walls) or raise the budget",
-    "label": "an object of very many convex parts makes every trial slow; a coarser mesh helps",
-    "screen": "a mesh of very many faces makes sampling slow; simplify it",
-    "sample": "a mesh of very many faces or convex parts makes sampling slow; simplify it",
-}
-
-
-def timeout_verdict(exc: StageTimeoutError) -> str:
-    """A stopped stage in words (the stage, its budget, what to do)."""
-    what = STAGE_WORDS.get(exc.stage, f"stage {exc.stage!r}")
-    if exc.whole:
-        return (
-            f"the object did not end within its bound of {exc.budget:g} s of wall time (stopped "
-            f"in {what}): a loaded machine or a slow object; retry on a quieter machine or "
-            "raise the bound"
-        )
-    advice = STAGE_ADVICE.get(exc.stage, "")
-    return f"{what} did not end within its budget of {exc.budget:g} CPU s" + (
-        f": {advice}" if advice else ""
+    return benchmark_object(
+        item,
+        params,
+        simulator,
+        min_passing=min_passing,
+        on_stage=on_stage,
+        decompose_fallback=decompose_fallback,
     )
 
 
-def _seconds(times: Mapping[str, float]) -> dict[str, float]:
-    return {k: round(float(v), 1) for k, v in times.items()}
+def _run_object(
+    item: BenchmarkSource,
+    params: BenchmarkParameters,
+    simulator: Simulator,
+    limits: BuildLimits | None,
+) -> tuple[Benchmark, dict[str, float], dict[str, Any] | None]:
+    """One object built in a budget child where needed: ``(benchmark, wall seconds per stage,
+    the decomposition fallback's record or None)``. A crash in CoACD is retried once with
+    :func:`fallback_decomposition`, its decomposition budget what the crashed run left; an
+    exception raised after that carries the record as its ``fallback``."""
+    min_passing = limits.min_passing if limits is not None else 0
+    budgets = limits.budgets() if limits is not None else {}
+    wall = limits.object_wall_s if limits is not None else None
+    if not (budgets or wall is not None or item.source.mesh is not None):
+        return benchmark_object(item, params, simulator, min_passing=min_passing), {}, None
+    # a child process: budgets, crashes that end only the object, and CoACD stopped by Ctrl-C
+    # or SIGTERM within a second
+    args = (item, params, simulator, min_passing)
+    try:
+        done = run_with_budget(_budgeted_object, args, budgets, total_wall_s=wall)
+        return done.value, done.times, None
+    except StageCrashError as crash:
+        if crash.stage != "decompose":
+            raise
+        first = crash
+    record: dict[str, Any] = {"tried": False, "worked": False, "settings": FALLBACK_WORDS}
+    retry = dict(budgets)
+    if "decompose" in budgets:
+        retry["decompose"] = budgets["decompose"] - (first.cpu_seconds or 0.0)
+        if retry["decompose"] < 1.0:
+            record["outcome"] = "no CPU budget left for it"
+            first.fallback = record  # type: ignore[attr-defined]
+            raise first
+    try:
+        done = run_with_budget(_budgeted_object, (*args, True), retry, total_wall_s=wall)
+    except (StageCrashError, StageTimeoutError) as again:
+        record["tried"] = True
+        if again.stage in AFTER_DECOMPOSE:  # decomposed: the rest of the object failed
+            record.update(worked=True, outcome="it decomposed the mesh")
+            again.fallback = record  # type: ignore[attr-defined]
+            raise
+        record["outcome"] = (
+            "it crashed too"
+            if isinstance(again, StageCrashError) and again.stage == "decompose"
+            else crash_verdict(again)
+            if isinstance(again, StageCrashError)
+            else timeout_verdict(again)
+        )
+        first.fallback = record  # type: ignore[attr-defined]
+        raise first from None
+    except Dg16mError as exc:  # e.g. too few pairs after the decomposition
+        decomposed = getattr(exc, "stage", "") in AFTER_DECOMPOSE
+        record.update(tried=True, worked=decomposed, outcome=str(exc))
+        if decomposed:
+            record["outcome"] = "it decomposed the mesh"
+        exc.fallback = record  # type: ignore[attr-defined]
+        raise
+    record.update(tried=True, worked=True, outcome="it decomposed the mesh")
+    return done.value, done.times, record
+
+
+AFTER_DECOMPOSE = ("sample", "label")
+"""The stages of :func:`benchmark_object` after the decomposition."""
+
+FALLBACK_WORDS = "CoACD's next seed (other cutting planes, the same threshold)"
+"""The decomposition fallback (:func:`fallback_decomposition`) in words."""
 
 
 def _object_task(
@@ -365,37 +483,10 @@ def _object_task(
     limits: BuildLimits | None = None,
 ) -> dict[str, Any]:
     relative = f"{OBJECTS_FOLDER}/{item.object_id}.h5"
-    times: dict[str, float] = {}
-    min_passing = limits.min_passing if limits is not None else 0
-    budgets = limits.budgets() if limits is not None else {}
-    wall = limits.object_wall_s if limits is not None else None
     try:
-        if budgets or wall is not None or item.source.mesh is not None:
-            # a child process: budgets, and CoACD stopped by Ctrl-C / SIGTERM within a second
-            done = run_with_budget(
-                _budgeted_object,
-                (item, params, simulator, min_passing),
-                budgets,
-                total_wall_s=wall,
-            )
-            bench, times = done.value, done.times
-        else:
-            bench = benchmark_object(item, params, simulator, min_passing=min_passing)
-    except (StageTimeoutError, ObjectRejectedError) as exc:
-        timeout = isinstance(exc, StageTimeoutError)
-        entry = {
-            "status": "failed",
-            "files": {},
-            "error": f"{item.object_id}: {exc}" if timeout else str(exc),
-            "rejected": "time budget" if timeout else "too few passing pairs",
-            "stage": exc.stage,
-            "verdict": timeout_verdict(exc) if isinstance(exc, StageTimeoutError) else exc.verdict,
-        }
-        if not entry["verdict"]:
-            del entry["verdict"]
-        if getattr(exc, "stage_times", None):  # set by run_with_budget
-            entry["stage_seconds"] = _seconds(exc.stage_times)
-        return entry
+        bench, times, fallback = _run_object(item, params, simulator, limits)
+    except (StageTimeoutError, StageCrashError, ObjectRejectedError) as exc:
+        return rejection_entry(item, exc)
     except Dg16mError as exc:  # a broken mesh or grasp file fails only its own entry
         return {"status": "failed", "files": {}, "error": str(exc)}
     write_benchmark(Path(out) / relative, bench)
@@ -411,6 +502,8 @@ def _object_task(
         "invalid_reasons": bench.trials.invalid_reasons(),
         "max_penetration_m": summary["max_penetration_m"],
     }
+    if fallback is not None:
+        entry["decompose_fallback"] = fallback
     if item.reseat_max > 0:
         entry["reseat"] = bench.metadata.get("reseat", {}).get(
             item.object_id, {"max_shift_m": item.reseat_max, **shift_summary(bench.reseat_shift)}
@@ -431,7 +524,7 @@ def _object_task(
                 "mean": round(1000 * report.deviation_mean, 3),
             }
         if times:
-            entry["stage_seconds"] = _seconds(times)
+            entry["stage_seconds"] = seconds(times)
     return entry
 
 
@@ -456,13 +549,15 @@ def build_benchmark(
     progress: bool = True,
     simulator: Simulator | str | None = None,
     limits: BuildLimits | None = None,
+    retry_rejected: bool = False,
 ) -> Path:
     """Build (or resume) a benchmark in ``out``; returns the path of ``benchmark.h5``.
 
     ``limits`` (:class:`BuildLimits`): the fewest passing pairs an object must give and time
     budgets per stage; objects that fail them are left out and listed in the manifest with
     the reason and stage (recorded in its parameters, so a resume with other limits is
-    refused).
+    refused). A resume keeps the rejections whose inputs and settings are unchanged
+    (:func:`~dg16m_env.benchmark.verdicts.kept_rejections`) unless ``retry_rejected``.
 
     ``simulator`` runs the trials (default C MuJoCo; with MuJoCo Warp on one GPU keep
     ``workers=1``: one object's trials already fill the device). A build with another engine
@@ -488,6 +583,7 @@ def build_benchmark(
         backend=backend,
         address=address,
         progress=progress,
+        retry_rejected=retry_rejected,
     )
     return write_built_benchmark(
         root, [item.object_id for item in items], manifest, params, simulator
@@ -520,20 +616,26 @@ def build_objects(
     address: str | None = None,
     progress: bool = True,
     parameters: Mapping[str, Any] | None = None,
+    retry_rejected: bool = False,
 ) -> dict[str, Any]:
     """Build (or resume) every object of ``items`` into ``root/objects/``; returns the
-    manifest (one entry per object: ``ok`` with counts, or ``failed`` with the reason)."""
+    manifest (one entry per object: ``ok`` with counts, or ``failed`` with the reason). A
+    resume does not redo an object ``root`` already rejected with the same inputs and
+    settings (:func:`~dg16m_env.benchmark.verdicts.kept_rejections`; its entry stays as it
+    is) unless ``retry_rejected``."""
+    parameters = (
+        dict(parameters)
+        if parameters is not None
+        else build_parameters(items, params, simulator, limits)
+    )
+    kept = {} if retry_rejected else kept_rejections(root, items, parameters)
     return run_resumable(
         _object_task,
-        items,
+        [item for item in items if item.object_id not in kept],
         (str(root.resolve()), params, simulator, limits),
         root=root,
         kind="benchmark",
-        parameters=(
-            dict(parameters)
-            if parameters is not None
-            else build_parameters(items, params, simulator, limits)
-        ),
+        parameters=parameters,
         folders=(OBJECTS_FOLDER,),
         error=BenchmarkError,
         workers=workers,

@@ -97,8 +97,10 @@ def _register_build(sub: Any) -> None:
             "OUT/benchmark.h5 (schema version 2). Results do not depend on --workers or "
             "--backend; reruns resume. Mesh files without --grasps are built with the real-object "
             "settings (--mesh-settings real, the default): a screen of 40 force-closure pairs "
-            "before the decomposition, CPU budgets per stage and at most 10 minutes of wall time "
-            "per object, each rejected mesh listed with its stage and the reason in words. "
+            "before the decomposition, CPU budgets per stage (--stage-budget; the same verdict "
+            "at any machine load), each rejected mesh, or mesh whose CoACD or MuJoCo crashed, "
+            "listed with its stage and the reason in words; a resume keeps those verdicts "
+            "(--retry-rejected redoes them). "
             "Ctrl-C or SIGTERM stops the build and every process it started within seconds; "
             "finished objects stay done."
         ),
@@ -184,11 +186,34 @@ def _build_arguments(build: argparse.ArgumentParser) -> None:
         help="--meshes without --grasps: 'real' (default) builds them as the real benchmark's "
         "furniture: a screen that rejects objects giving fewer than 40 force-closure pairs "
         "before their decomposition, the real CoACD settings, budgets of CPU time per stage "
-        "and at most 10 minutes of wall time per object, each rejection with its stage and "
+        "(--stage-budget), each rejection with its stage and "
         "reason; 'plain': the procedural objects' settings, no screen and no budgets",
+    )
+    _add_stage_budget_argument(build)
+    build.add_argument(
+        "--retry-rejected",
+        action="store_true",
+        help="on resume, build again the objects the folder already rejected (by default a "
+        "rejection stays while the object's files and the build's settings are unchanged; one "
+        "stopped by the wall-time safety net is always retried)",
     )
     add_simulator_arguments(build)
     arguments.add_progress_argument(build)
+
+
+def _add_stage_budget_argument(build: argparse.ArgumentParser) -> None:
+    """``--stage-budget STAGE=SECONDS`` (repeatable) of ``build`` and ``build-real``."""
+    build.add_argument(
+        "--stage-budget",
+        action="append",
+        default=[],
+        metavar="STAGE=SECONDS",
+        help="CPU seconds one object may spend in a stage: decompose (CoACD), sample (the "
+        "screen and the sampling) or label (the trials); repeatable (e.g. --stage-budget "
+        "decompose=600). Defaults with the real settings: decompose 180, sample 120, label 240; "
+        "without, none. A stage also stops at 10 times its budget in wall time, a safety net "
+        "for a stage that hangs. Recorded in the manifest: a resume needs the same budgets",
+    )
 
 
 def _register_info(sub: Any) -> None:
@@ -314,6 +339,7 @@ def _build_real_arguments(build: argparse.ArgumentParser) -> None:
     arguments.add_limit_argument(build, "a pilot of N objects")
     arguments.add_parallel_arguments(build, "processes (default: 1)", ray=False)
     arguments.add_progress_argument(build)
+    _add_stage_budget_argument(build)
     add_simulator_arguments(build)
     build.set_defaults(handler=_build_real)
 
@@ -351,7 +377,7 @@ def _split_real(args: argparse.Namespace) -> int:
 
 def _build_real(args: argparse.Namespace) -> int:
     from dg16m_env.benchmark.file import read_benchmark
-    from dg16m_env.benchmark.real import build_real_benchmark, read_split
+    from dg16m_env.benchmark.real import REAL_LIMITS, build_real_benchmark, read_split
     from dg16m_env.benchmark.report_text import format_summary
 
     split = read_split(args.split) if args.split is not None else None
@@ -359,6 +385,7 @@ def _build_real(args: argparse.Namespace) -> int:
         args.meshes,
         args.out,
         split=split,
+        limits=REAL_LIMITS.with_stage_budgets(args.stage_budget),
         limit=args.limit,
         workers=args.workers,
         progress=not args.no_progress,
@@ -429,11 +456,19 @@ def _sources(args: argparse.Namespace) -> list[Any]:
 
 def _build(args: argparse.Namespace) -> int:
     from dataset_gen.io import failed_entries, failure_lines, read_manifest
-    from dg16m_env.benchmark.build import NothingBuiltError, build_benchmark
+    from dg16m_core.budget import WALL_FACTOR
+    from dg16m_env.benchmark.build import (
+        BuildLimits,
+        NothingBuiltError,
+        build_benchmark,
+        build_parameters,
+    )
     from dg16m_env.benchmark.file import read_benchmark
     from dg16m_env.benchmark.model import BenchmarkError, BenchmarkParameters
     from dg16m_env.benchmark.report_text import format_summary
+    from dg16m_env.benchmark.verdicts import kept_rejections
     from dg16m_env.physics.labels import LabelError, PerturbationSpec
+    from dg16m_env.physics.simulator import check_simulator
 
     try:
         perturbation = (
@@ -454,6 +489,10 @@ def _build(args: argparse.Namespace) -> int:
     real_settings &= args.mesh_settings in (None, "real")
     simulator = simulator_from_args(args)
     items = _sources(args)
+    if args.meshes is not None and args.grasps is None:  # read z up: say so, and which may not
+        from dataset_gen.real.orientation import build_up_note
+
+        print(build_up_note(args.meshes))
     limits = None
     if real_settings:
         from dataclasses import replace
@@ -466,18 +505,28 @@ def _build(args: argparse.Namespace) -> int:
             perturbation=perturbation,
             n_robust=REAL_PARAMETERS.n_robust if args.robust is None else args.robust,
         )
-        limits = MESH_LIMITS
+        limits = MESH_LIMITS.with_stage_budgets(args.stage_budget)
         print(
             f"{len(items)} meshes with the real-object settings (--mesh-settings real): each "
             f"needs {limits.min_passing} force-closure pairs; CPU budgets decomposition "
             f"{limits.decompose_s:g} s, sampling {limits.sample_s:g} s, trials "
-            f"{limits.label_s:g} s; each ends admitted or rejected within "
-            f"{limits.wall_bound_s():g} s of wall time"
+            f"{limits.label_s:g} s (--stage-budget STAGE=SECONDS), the same at any machine "
+            f"load; a stage that hangs stops at {WALL_FACTOR:g} times its budget in wall time"
         )
     else:
         params = BenchmarkParameters(
             seed=args.seed, perturbation=perturbation, n_robust=args.robust or 0
         )
+        if args.stage_budget:
+            limits = BuildLimits().with_stage_budgets(args.stage_budget)
+    if not args.retry_rejected:
+        parameters = build_parameters(items, params, check_simulator(simulator), limits)
+        kept = kept_rejections(Path(args.out), items, parameters)
+        if kept:
+            print(
+                f"kept the verdict of {len(kept)} objects from the earlier run (files and "
+                f"settings unchanged: {', '.join(sorted(kept))}); --retry-rejected to redo them"
+            )
     try:
         path = build_benchmark(
             items,
@@ -487,6 +536,7 @@ def _build(args: argparse.Namespace) -> int:
             progress=not args.no_progress,
             simulator=simulator,
             limits=limits,
+            retry_rejected=args.retry_rejected,
         )
     except NothingBuiltError as exc:
         if len(exc.failed) != len(items):

@@ -14,6 +14,7 @@ from dg16m_core import arguments
 from dg16m_core.cli import add_command
 from dg16m_core.errors import Dg16mError
 from dg16m_core.stopping import sigterm_interrupts
+from dg16m_env.cli import tracks
 from dg16m_env.physics.simulator import add_simulator_arguments, simulator_from_args
 
 EVALUATE_EXAMPLES = (
@@ -24,10 +25,14 @@ EVALUATE_EXAMPLES = (
     "  dg16m evaluate --predictor baselines.pairing_baselines:force_closure_baseline "
     "--evaluators fce,gsr --benchmark real --limit 5\n"
     "  # after Ctrl-C or SIGTERM: finished evaluators were kept in --out, and gsr's finished\n"
-    "  # objects beside it (runs/fc.gsr.checkpoint/); skip them all\n"
+    "  # objects beside it (runs/fc.gsr.checkpoint/); skip them all (classifier and\n"
+    "  # policy runs resume the same way)\n"
     "  dg16m evaluate runs/refs/force_closure.h5 --out runs/fc.json --resume\n"
     "  # run your predictor (a function observation -> dual grasps) in a sandboxed process\n"
     "  dg16m evaluate --predictor my_grasps.py:predict --save-submission runs/mine.h5\n"
+    "  # the cloud track: it sees only two noisy depth cameras, never the mesh\n"
+    "  dg16m evaluate --predictor baselines.cloud_predictor:cgdf_partial_predictor "
+    "--track cloud --out runs/cloud.json\n"
     "  # rank the benchmark's candidates with a classifier (the paper's Table II protocol)\n"
     "  dg16m evaluate --classifier my_classifier.py:score --k 10\n"
     "  # a policy on a registered Gymnasium environment, 100 seeded episodes\n"
@@ -133,6 +138,7 @@ def _predictor_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--points", type=int, default=2048, help="points in each observation (default 2048)"
     )
+    tracks.add_track_arguments(parser)
 
 
 def register(subparsers: Any) -> None:
@@ -200,11 +206,13 @@ def _evaluate_arguments(ev: argparse.ArgumentParser) -> None:
     ev.add_argument(
         "--resume",
         action="store_true",
-        help="keep the results --out already holds for the same subject (sha256), benchmark "
-        "(sha256 and objects), seeds, parameters and evaluator and package versions, and run "
-        "only the others; gsr continues from the objects its checkpoint beside --out "
-        "(OUT.gsr.checkpoint/) holds, with the same result as an uninterrupted run (a "
-        "--predictor run also reuses the submission it wrote)",
+        help="keep the results --out already holds for the same subject (a file's sha256, or "
+        "for --classifier / --policy the sha256 of its module's source and its torch weights), "
+        "benchmark (sha256 and objects), seeds, parameters and evaluator and package versions, "
+        "and run only the others; gsr, classifier and policy continue from the objects (or "
+        "episodes) their checkpoint beside --out (OUT.NAME.checkpoint/) holds, with the same "
+        "result as an uninterrupted run (a --predictor run also reuses the submission it "
+        "wrote)",
     )
     arguments.add_parallel_arguments(ev, "local processes (default 1)")
     ev.add_argument(
@@ -316,10 +324,10 @@ def _evaluate(args: argparse.Namespace) -> int:
         )
     if args.resume and args.out is None:
         raise EvaluateCommandError("--resume: expected --out RESULTS.json to resume, found none")
-    if args.resume and kind not in ("submission", "predictor"):
+    if args.track != "mesh" and kind != "predictor":
         raise EvaluateCommandError(
-            f"--resume: expected a submission file or --predictor (a subject with a sha256), "
-            f"found --{kind}"
+            f"--track {args.track}: expected --predictor (a submission file declares its own "
+            f"track in its metadata), found {'a submission file' if kind == 'submission' else '--' + kind}"
         )
     if kind == "policy" and args.env_id is None:
         raise EvaluateCommandError("--policy: expected --env-id, found none")
@@ -375,11 +383,9 @@ def _run_subject(
             )
             print(partial_note(ref))
     if kind == "policy":
-        policy = _load_trusted(args.policy)
-        record["target"] = args.policy
         env_kwargs = _policy_env_kwargs(args, ref)
-        for name in _names(args.evaluators, "policy"):
-            ev = make(
+        built = {
+            name: make(
                 name,
                 env_id=args.env_id,
                 n_episodes=args.episodes,
@@ -387,20 +393,37 @@ def _run_subject(
                 env_kwargs=env_kwargs,
                 progress=progress,
             )
-            state.stage = name
-            results[name] = ev.evaluate(policy)
-            _save(args.out, results, record)
+            for name in _names(args.evaluators, "policy")
+        }
+        _score_code(args, args.policy, built, record, state)
     elif kind == "classifier":
-        classifier = _load_trusted(args.classifier)
-        record["target"] = args.classifier
-        for name in _names(args.evaluators, "classifier"):
-            ev = make(name, benchmark=ref, k=args.k, seed=args.seed, progress=progress)
-            state.stage = name
-            results[name] = ev.evaluate(classifier)
-            _save(args.out, results, record)
+        built = {
+            name: make(name, benchmark=ref, k=args.k, seed=args.seed, progress=progress)
+            for name in _names(args.evaluators, "classifier")
+        }
+        _score_code(args, args.classifier, built, record, state)
     else:
         _score_submission(args, ref, kind, record, simulator, progress, state)
     return results
+
+
+def _score_code(
+    args: argparse.Namespace,
+    target: str,
+    built: dict[str, Any],
+    record: dict[str, Any],
+    state: _RunState,
+) -> None:
+    """Score the classifier or policy ``target`` names (``module:attr``, trusted code run in
+    this process) with each evaluator of ``built``; it is told apart in checkpoints and
+    ``--resume`` by the sha256 of its code and weights."""
+    from dg16m_env.evaluators.code_identity import code_sha256
+
+    subject = _load_trusted(target)
+    sha256 = code_sha256(subject)
+    record.update({"target": target, "sha256": sha256})
+    stored = _stored(args.out)[1] if args.resume else {}
+    _run_evaluators(args, built, subject, sha256, record, state, stored)
 
 
 def _policy_env_kwargs(args: argparse.Namespace, ref: Any) -> dict[str, Any] | None:
@@ -447,13 +470,9 @@ class _RunState:
             kept.append(f"kept {', '.join(self.results)} in {self.out}")
         n = len(list(self.checkpoint.glob("[0-9]*.npz"))) if self.checkpoint else 0
         if n:
-            kept.append(f"kept {n} finished {self.stage} objects in {self.checkpoint}")
-        kept_text = "; ".join(kept) or "nothing was kept"
-        if self.kind not in ("submission", "predictor"):
-            return (
-                f"{where}: {kept_text}; a --{self.kind} run cannot resume (in-process code has "
-                "no sha256 to check a resumed run against): rerun it whole"
-            )
+            units = "episodes" if self.kind == "policy" else "objects"
+            kept.append(f"kept {n} finished {self.stage} {units} in {self.checkpoint}")
+        kept_text = "; ".join(kept)
         if not kept:
             return f"{where}: nothing was kept; rerun the command to start again"
         return f"{where}: {kept_text}; rerun with --resume to continue from there"
@@ -506,6 +525,7 @@ def _score_submission(
         sha256 = file_sha256(submission)
     state.stage = "setup"
     record.update({"file": str(submission), "target": args.predictor, "sha256": sha256})
+    record["track"] = tracks.file_track(submission)
     built = submission_evaluators(
         _names(args.evaluators, "fce,gsr"),
         ref,
@@ -515,6 +535,25 @@ def _score_submission(
         progress=progress,
         simulator=simulator,
     )
+    if kind == "predictor" and args.out is not None:  # recorded in --out for a resume
+        state.submission = submission
+    return _run_evaluators(args, built, submission, sha256, record, state, stored)
+
+
+def _run_evaluators(
+    args: argparse.Namespace,
+    built: dict[str, Any],
+    subject: Any,
+    sha256: str,
+    record: dict[str, Any],
+    state: _RunState,
+    stored: dict[str, Any],
+) -> dict[str, Any]:
+    """Score ``subject`` (whose identity is ``sha256``) with each evaluator of ``built``,
+    writing ``--out`` after each (and, for an evaluator that checkpoints, each finished object
+    beside it); with ``--resume``, the results ``stored`` in ``--out`` for the same run are
+    kept and not scored again, and a checkpointed evaluator goes on from its finished
+    objects."""
     results = state.results
     for name, ev in built.items():
         if name in stored:
@@ -523,10 +562,8 @@ def _score_submission(
             print(f"{name}: kept from {args.out} (finished in an earlier run; --resume)")
             # stopped between writing the result and removing its checkpoint: remove it now
             _remove_checkpoint(args.out, name)
-    if results or kind == "predictor":  # a predictor's submission is recorded for a resume
+    if results or state.submission is not None:  # a predictor's submission is recorded too
         _save(args.out, results, record)
-        if kind == "predictor" and args.out is not None:
-            state.submission = submission
     for name, ev in built.items():
         if name in results:
             continue
@@ -539,7 +576,7 @@ def _score_submission(
             options["checkpoint"] = CheckpointRequest(
                 state.checkpoint, resume=args.resume, remove=False
             )
-        results[name] = ev.evaluate(submission, **options)
+        results[name] = ev.evaluate(subject, **options)
         _save(args.out, results, record)
         if state.checkpoint is not None:  # the result is written: its checkpoint is done
             _remove_checkpoint(args.out, name)
@@ -611,6 +648,7 @@ def _reusable_submission(
         or path.resolve() != Path(wanted).resolve()
         or not path.is_file()
         or file_sha256(path) != sha256
+        or not tracks.same_track(args, path)
     ):
         return None
     print(f"--resume: reusing the predictor's submission {path} (sha256 {sha256[:12]})")
@@ -643,6 +681,7 @@ def _submission_subject(args: argparse.Namespace, ref: Any, kind: str, progress:
     from dg16m_env.subjects.predictor import submission_from_predictor
 
     out = args.save_submission or predictor_submission_path(args.out)
+    cloud = tracks.cloud_track(args)
     path, run = submission_from_predictor(
         _predictor_spec(args),
         out,
@@ -650,7 +689,10 @@ def _submission_subject(args: argparse.Namespace, ref: Any, kind: str, progress:
         n_points=args.points,
         max_grasps=args.max_grasps,
         progress=progress,
+        track=args.track,
+        cloud=cloud,
     )
+    tracks.print_sandbox(run, cloud)
     _print_predictor_errors(run.errors)
     print(f"wrote {path}")
     return path
@@ -708,6 +750,7 @@ def _make(args: argparse.Namespace) -> int:
     if args.predictor is not None:
         from dg16m_env.subjects.predictor import submission_from_predictor
 
+        cloud = tracks.cloud_track(args)
         path, run = submission_from_predictor(
             _predictor_spec(args),
             args.out,
@@ -715,7 +758,10 @@ def _make(args: argparse.Namespace) -> int:
             n_points=args.points,
             max_grasps=args.max_grasps,
             progress=not args.no_progress,
+            track=args.track,
+            cloud=cloud,
         )
+        tracks.print_sandbox(run, cloud)
         _print_predictor_errors(run.errors)
     else:
         poses, scores = submission_from_dg16m(

@@ -10,7 +10,13 @@ A checkpoint is a folder (``dg16m evaluate`` puts it beside ``--out``: ``R.json`
   versions, benchmark sha256 and objects, parameters, seeds) and the subject's sha256;
 * one ``NNNNN.npz`` per finished object (``NNNNN`` = its index in the benchmark), holding its id
   and either its arrays or the error that made it unscorable; ``numpy.load`` reads it with
-  ``allow_pickle=False``.
+  ``allow_pickle=False``. The ``policy`` evaluator records episodes the same way (``NNNNN`` =
+  the episode's index, its id ``"episode N"``).
+
+The evaluators that checkpoint: ``gsr`` (each object's trial labels; the subject is a
+submission's sha256), ``classifier`` (each object's ranking) and ``policy`` (each episode's
+outcome), whose code subjects are told apart by
+:func:`~dg16m_env.evaluators.code_identity.code_sha256`.
 
 Every file is written atomically (:mod:`dg16m_core.atomic`): an interrupt leaves each object
 either recorded in full or absent. Resuming refuses a checkpoint of another run

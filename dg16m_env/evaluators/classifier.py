@@ -79,6 +79,8 @@ from dg16m_env.physics.labels import LEVELS
 from dg16m_env.rates import object_rate
 from dg16m_env.subjects.observation import object_observation
 
+from .checkpoint import CheckpointError, CheckpointRequest, ObjectCheckpoint
+from .code_identity import code_sha256
 from .registry import Evaluator, EvaluatorError, register
 from .result import EvaluationResult, breakdown, code_subject, qualified_type
 
@@ -252,12 +254,52 @@ class ClassifierEvaluator(Evaluator):
         rng = np.random.default_rng(object_seed(self.candidate_seed, f"candidates:{object_id}"))
         return rng.permutation(n)
 
-    def evaluate(self, subject: Any) -> EvaluationResult:
-        """Score ``subject`` (a classifier, see the module docstring).
+    def run_parameters(self) -> dict[str, Any]:
+        """Every argument that can change a score (a result's ``parameters``)."""
+        return {
+            "k": self.k,
+            "levels": list(self.levels),
+            "n_points": self.n_points,
+            "observation_seed": self.observation_seed,
+            "batch_size": self.batch_size,
+            "n_resamples": self.n_resamples,
+        }
+
+    def run_seeds(self) -> dict[str, int]:
+        """Every seed used, by name (a result's ``seeds``)."""
+        return {
+            "observation": self.observation_seed,
+            "resample": self.seed,
+            "candidates": self.candidate_seed,
+        }
+
+    def planned(self) -> dict[str, Any]:
+        """See :meth:`Evaluator.planned`."""
+        from dg16m_core.json_values import json_ready
+
+        return json_ready(
+            {
+                **self.identity(),
+                "benchmark": self.ref.record(),
+                "parameters": self.run_parameters(),
+                "seeds": self.run_seeds(),
+            }
+        )
+
+    def evaluate(
+        self, subject: Any, *, checkpoint: CheckpointRequest | None = None
+    ) -> EvaluationResult:
+        """Score ``subject`` (a classifier, see the module docstring). With ``checkpoint``, each
+        object's ranking (or failure) is recorded in its folder as it is scored, and a resumed
+        run (``checkpoint.resume``) scores only the objects not recorded there; the result is
+        the same as without (see :mod:`dg16m_env.evaluators.checkpoint`; the subject is told
+        apart by :func:`~dg16m_env.evaluators.code_identity.code_sha256`).
 
         Raises:
             EvaluatorError: the subject is neither callable nor a torch Module, or a Module has
                 parameters outside the CPU.
+            CheckpointError: resuming a checkpoint of another run (subject, benchmark,
+                parameters, seeds or versions).
         """
         module = _is_torch_module(subject)
         if module:
@@ -274,6 +316,10 @@ class ClassifierEvaluator(Evaluator):
                 "classifier: expected a callable classifier(observation, poses) -> scores or a "
                 f"torch.nn.Module, found {qualified_type(subject)}"
             )
+        sha256 = code_sha256(subject)
+        store = None
+        if checkpoint is not None:
+            store = ObjectCheckpoint(checkpoint, {**self.planned(), "subject": sha256})
         if module:
             import torch
 
@@ -281,41 +327,97 @@ class ClassifierEvaluator(Evaluator):
             subject.eval()
             try:
                 with torch.no_grad():
-                    scores, failures = self._score_all(_module_scorer(subject, self.batch_size))
+                    scorer = _module_scorer(subject, self.batch_size)
+                    scores, failures = self._score_all(scorer, store)
             finally:
                 for m, training in modes:
                     m.training = training
         else:
-            scores, failures = self._score_all(subject)
-        return self._result(subject, module, scores, failures)
+            scores, failures = self._score_all(subject, store)
+        result = self._result(subject, module, scores, failures, sha256)
+        if store is not None:
+            store.finish()
+        return result
 
     def _score_all(
-        self, classifier: Callable[[dict[str, Any], np.ndarray], Any]
+        self,
+        classifier: Callable[[dict[str, Any], np.ndarray], Any],
+        store: ObjectCheckpoint | None = None,
     ) -> tuple[dict[int, np.ndarray], dict[str, str]]:
-        """Each object's (N_o,) scores in stored row order, or its failure reason."""
+        """Each object's (N_o,) scores in stored row order, or its failure reason; the objects
+        ``store`` kept are not scored again, and each scored one is recorded there."""
         bench = self.ref.benchmark
-        scores: dict[int, np.ndarray] = {}
-        failures: dict[str, str] = {}
-        objects = range(len(bench.objects))
+        ids = [obj.object_id for obj in bench.objects]
+        scores, failures = self._kept(store, ids)
+        objects = [i for i in range(len(ids)) if i not in scores and ids[i] not in failures]
         for index in progress_bar(objects, desc="classifier", enabled=self.progress):
             rows = np.flatnonzero(bench.object_index == index)
             if rows.size == 0:
                 continue  # nothing to rank: no top-k rows, AP undefined
-            order = self._order(index, rows.size)
             try:
-                observation = self._observation(index)
-                poses = np.ascontiguousarray(bench.poses[rows[order]], dtype=np.float64)
-                presented = _as_scores(classifier(observation, poses), rows.size)
+                scores[index] = self._ranked(classifier, index, rows)
             except ScoreError as exc:
-                failures[bench.objects[index].object_id] = str(exc)
-                continue
+                failures[ids[index]] = str(exc)
             except Exception as exc:  # the classifier's own error fails only this object
-                failures[bench.objects[index].object_id] = f"{type(exc).__name__}: {exc}"
+                failures[ids[index]] = f"{type(exc).__name__}: {exc}"
+            if store is not None:
+                if index in scores:
+                    store.save(index, ids[index], {"scores": scores[index]})
+                else:
+                    store.save(index, ids[index], error=failures[ids[index]])
+        # in benchmark order, whichever run scored them (the result's bytes do not depend on it)
+        return scores, {i: failures[i] for i in ids if i in failures}
+
+    def _ranked(
+        self,
+        classifier: Callable[[dict[str, Any], np.ndarray], Any],
+        index: int,
+        rows: np.ndarray,
+    ) -> np.ndarray:
+        """Object ``index``'s (N_o,) scores in stored row order: minus the rank the classifier
+        gave each of its candidates ``rows``, shown in the seeded order.
+
+        Raises:
+            ScoreError: the object cannot be loaded, or the scores cannot be used.
+        """
+        order = self._order(index, rows.size)
+        observation = self._observation(index)
+        poses = np.ascontiguousarray(self.ref.benchmark.poses[rows[order]], dtype=np.float64)
+        presented = _as_scores(classifier(observation, poses), rows.size)
+        # Stored-order scores; ties must keep the presented order, so rank here by rank.
+        rank = np.empty(rows.size, dtype=np.int64)
+        rank[order[_top_k(presented, rows.size)]] = np.arange(rows.size)
+        return -rank.astype(np.float64)  # distinct: higher = ranked first
+
+    def _kept(
+        self, store: ObjectCheckpoint | None, ids: list[str]
+    ) -> tuple[dict[int, np.ndarray], dict[str, str]]:
+        """The scores and failures of the objects a resumed checkpoint holds."""
+        scores: dict[int, np.ndarray] = {}
+        failures: dict[str, str] = {}
+        if store is None:
+            return scores, failures
+        position = {object_id: k for k, object_id in enumerate(ids)}
+        for object_id, entry in store.kept(ids).items():
+            index = position[object_id]
+            if entry["error"] is not None:
+                failures[object_id] = str(entry["error"])
                 continue
-            # Stored-order scores; ties must keep the presented order, so rank here by rank.
-            rank = np.empty(rows.size, dtype=np.int64)
-            rank[order[_top_k(presented, rows.size)]] = np.arange(rows.size)
-            scores[index] = -rank.astype(np.float64)  # distinct: higher = ranked first
+            found = entry["arrays"].get("scores")
+            n = int((self.ref.benchmark.object_index == index).sum())
+            if found is None or found.shape != (n,) or found.dtype != np.float64:
+                raise CheckpointError(
+                    f"classifier checkpoint of {object_id}: expected ({n},) float64 scores, "
+                    f"found {None if found is None else (found.shape, str(found.dtype))}; "
+                    "remove the checkpoint folder or run without --resume"
+                )
+            scores[index] = found
+        if scores or failures:
+            print(
+                f"classifier: resuming: {len(scores) + len(failures)} of {len(ids)} objects "
+                f"kept from {store.folder}",
+                file=sys.stderr,
+            )
         return scores, failures
 
     def _result(
@@ -324,6 +426,7 @@ class ClassifierEvaluator(Evaluator):
         module: bool,
         scores: dict[int, np.ndarray],
         failures: dict[str, str],
+        sha256: str,
     ) -> EvaluationResult:
         bench, ref, k = self.ref.benchmark, self.ref, self.k
         ids, families = ref.object_ids, ref.families
@@ -396,21 +499,10 @@ class ClassifierEvaluator(Evaluator):
         return self.result(
             benchmark=ref.record(),
             subject=code_subject(
-                "classifier", subject, "torch.nn.Module" if module else "callable"
+                "classifier", subject, "torch.nn.Module" if module else "callable", sha256
             ),
-            parameters={
-                "k": k,
-                "levels": list(self.levels),
-                "n_points": self.n_points,
-                "observation_seed": self.observation_seed,
-                "batch_size": self.batch_size,
-                "n_resamples": self.n_resamples,
-            },
-            seeds={
-                "observation": self.observation_seed,
-                "resample": self.seed,
-                "candidates": self.candidate_seed,
-            },
+            parameters=self.run_parameters(),
+            seeds=self.run_seeds(),
             headline=self.headline,
             metrics=metrics,
             per_family=per_family,

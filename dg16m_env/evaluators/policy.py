@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import importlib
 import math
+import sys
 from collections import Counter
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -61,6 +62,8 @@ import numpy as np
 from dg16m_core.checks import check_integer
 from dg16m_core.progress import progress_bar
 
+from .checkpoint import CheckpointError, CheckpointRequest, ObjectCheckpoint
+from .code_identity import code_sha256
 from .registry import Evaluator, EvaluatorError, register
 from .result import EvaluationResult, code_subject, qualified_type
 
@@ -361,31 +364,73 @@ class PolicyEvaluator(Evaluator):
             if done:
                 return Episode(self._success(info, i), ret, length, object_id)
 
-    def run_episodes(self, subject: Any) -> list[Episode]:
-        """Every episode's outcome, in order (see the module docstring)."""
+    def run_parameters(self) -> dict[str, Any]:
+        """Every argument that can change a score (a result's ``parameters``)."""
+        return {
+            "env_id": self.env_id,
+            "n_episodes": self.n_episodes,
+            "env_kwargs": self.env_kwargs,
+            "max_episode_steps": self.max_episode_steps,
+            "deterministic": self.deterministic,
+            "env": self._env_record(),
+        }
+
+    def planned(self) -> dict[str, Any]:
+        """See :meth:`Evaluator.planned`."""
+        from dg16m_core.json_values import json_ready
+
+        return json_ready(
+            {
+                **self.identity(),
+                "benchmark": {},
+                "parameters": self.run_parameters(),
+                "seeds": {"reset": self.seed},
+            }
+        )
+
+    def run_episodes(self, subject: Any, store: ObjectCheckpoint | None = None) -> list[Episode]:
+        """Every episode's outcome, in order (see the module docstring); the episodes ``store``
+        kept are not run again, and each finished one is recorded there."""
         act, _ = self._actor(subject)
         reset = getattr(subject, "reset", None)
         reset = (
             reset if callable(reset) and not callable(getattr(subject, "predict", None)) else None
         )
+        done = _kept_episodes(store, self.n_episodes)
+        todo = [i for i in range(self.n_episodes) if i not in done]
         env = self._make_env()
         try:
-            return [
-                self._episode(env, act, i, reset)
-                for i in progress_bar(range(self.n_episodes), desc="policy", enabled=self.progress)
-            ]
+            for i in progress_bar(todo, desc="policy", enabled=self.progress):
+                done[i] = self._episode(env, act, i, reset)
+                if store is not None:
+                    store.save(i, _episode_name(i), _episode_arrays(done[i]))
         finally:
             env.close()
+        return [done[i] for i in range(self.n_episodes)]
 
-    def evaluate(self, subject: Any) -> EvaluationResult:
-        """Score ``subject`` (a policy, see the module docstring).
+    def evaluate(
+        self, subject: Any, *, checkpoint: CheckpointRequest | None = None
+    ) -> EvaluationResult:
+        """Score ``subject`` (a policy, see the module docstring). With ``checkpoint``, each
+        episode's outcome is recorded in its folder as it ends, and a resumed run
+        (``checkpoint.resume``) runs only the episodes not recorded there. Episode ``i`` starts
+        from ``reset(seed=seed + i)`` whichever run plays it, so the result is the same as
+        without for a policy whose actions depend only on what it observed since its
+        ``reset()`` (``deterministic=True`` for a ``predict`` model); the subject is told apart
+        by :func:`~dg16m_env.evaluators.code_identity.code_sha256`.
 
         Raises:
             EvaluatorError: not a policy, the environment cannot be made, fails, or gives no
                 success key at the end of an episode.
+            CheckpointError: resuming a checkpoint of another run (policy, environment,
+                parameters, seeds or versions).
         """
         _, interface = self._actor(subject)
-        episodes = self.run_episodes(subject)
+        sha256 = code_sha256(subject)
+        store = None
+        if checkpoint is not None:
+            store = ObjectCheckpoint(checkpoint, {**self.planned(), "subject": sha256})
+        episodes = self.run_episodes(subject, store)
         n = len(episodes)
         successes = sum(e.success for e in episodes)
         returns = np.array([e.ret for e in episodes])
@@ -408,17 +453,10 @@ class PolicyEvaluator(Evaluator):
                 }
         failed = {str(i): e.detail for i, e in enumerate(episodes) if e.reason is not None}
         reasons = Counter(e.reason for e in episodes if e.reason is not None)
-        return self.result(
+        result = self.result(
             benchmark={},
-            subject=code_subject("policy", subject, interface),
-            parameters={
-                "env_id": self.env_id,
-                "n_episodes": self.n_episodes,
-                "env_kwargs": self.env_kwargs,
-                "max_episode_steps": self.max_episode_steps,
-                "deterministic": self.deterministic,
-                "env": self._env_record(),
-            },
+            subject=code_subject("policy", subject, interface, sha256),
+            parameters=self.run_parameters(),
             seeds={"reset": self.seed},
             headline="success_rate",
             metrics={
@@ -440,3 +478,63 @@ class PolicyEvaluator(Evaluator):
                 "length_max": int(lengths.max()),
             },
         )
+        if store is not None:
+            store.finish()
+        return result
+
+
+def _episode_name(i: int) -> str:
+    """The name a checkpoint records episode ``i`` under (its "object id")."""
+    return f"episode {i}"
+
+
+def _episode_arrays(episode: Episode) -> dict[str, np.ndarray]:
+    """What a checkpoint records of an episode (absent optional fields are left out)."""
+    arrays = {
+        "success": np.array(episode.success, dtype=bool),
+        "ret": np.array(episode.ret, dtype=np.float64),
+        "length": np.array(episode.length, dtype=np.int64),
+    }
+    for name in ("object_id", "reason", "detail"):
+        value = getattr(episode, name)
+        if value is not None:
+            arrays[name] = np.array(value, dtype=str)
+    return arrays
+
+
+def _kept_episodes(store: ObjectCheckpoint | None, n_episodes: int) -> dict[int, Episode]:
+    """The episodes a resumed checkpoint holds, by index.
+
+    Raises:
+        CheckpointError: an entry that is not an episode's record.
+    """
+    if store is None:
+        return {}
+    names = [_episode_name(i) for i in range(n_episodes)]
+    position = {name: i for i, name in enumerate(names)}
+    done: dict[int, Episode] = {}
+    for name, entry in store.kept(names).items():
+        arrays = entry["arrays"]
+        try:
+            done[position[name]] = Episode(
+                success=bool(arrays["success"]),
+                ret=float(arrays["ret"]),
+                length=int(arrays["length"]),
+                **{
+                    field: str(arrays[field])
+                    for field in ("object_id", "reason", "detail")
+                    if field in arrays
+                },
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CheckpointError(
+                f"policy checkpoint of {name}: expected its outcome (success, ret, length), "
+                f"found {type(exc).__name__}: {exc}; remove the checkpoint folder or run "
+                "without --resume"
+            ) from None
+    if done:
+        print(
+            f"policy: resuming: {len(done)} of {n_episodes} episodes kept from {store.folder}",
+            file=sys.stderr,
+        )
+    return done

@@ -137,15 +137,17 @@ def qualified_type(value: Any) -> str:
     return f"{cls.__module__}.{cls.__qualname__}"
 
 
-def code_subject(kind: str, subject: Any, interface: str) -> dict[str, Any]:
+def code_subject(kind: str, subject: Any, interface: str, sha256: str) -> dict[str, Any]:
     """What a result records of code it scored (a classifier, a policy): its kind, its ``name``
-    attribute when that is a string, its type and the interface it was called through."""
+    attribute when that is a string, its type, the interface it was called through and the
+    sha256 of its code and weights (:func:`dg16m_env.evaluators.code_identity.code_sha256`)."""
     name = getattr(subject, "name", None)
     return {
         "kind": kind,
         "name": name if isinstance(name, str) else None,
         "type": qualified_type(subject),
         "interface": interface,
+        "sha256": sha256,
     }
 
 

@@ -15,6 +15,7 @@ from dg16m_env.benchmark.ref import BenchmarkRef, load_benchmark_ref
 from dg16m_env.physics.simulator import Simulator
 from dg16m_env.subjects.submission import Submission
 from dg16m_env.subjects.submission_reader import read_submission
+from dg16m_env.subjects.track import track_name
 
 from .registry import Evaluator, EvaluatorError, evaluator_class, make
 
@@ -65,6 +66,7 @@ def submission_record(submission: Submission) -> dict[str, Any]:
         "objects": len(submission.poses),
         "dual_grasps": submission.n_grasps,
         "metadata": dict(submission.metadata),
+        "track": track_name(submission.metadata),
     }
 
 

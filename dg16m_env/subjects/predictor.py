@@ -8,7 +8,8 @@ The leaderboard server never runs uploaded code.
 Isolation model
 ---------------
 The limits guard against mistakes (a hang, a leak, a crash), not against hostile code: the child
-runs with your user's rights, sees your files and may use the network.
+runs with your user's rights, sees your files and may use the network (on the cloud track, every
+file but the benchmark's: see below).
 
 * ``run_predictor`` starts one child process (``multiprocessing`` "spawn", Linux). Before
   importing the target, the child sets ``RLIMIT_CORE`` to 0 and ``RLIMIT_AS`` (virtual address
@@ -49,6 +50,10 @@ float32, ``normals`` (P, 3) float32, ``bounds`` (2, 3), ``mesh_vertices`` (V, 3)
 * a tuple ``(poses, scores)`` with ``scores`` (K,) finite, higher = better;
 * a dict ``{"poses": poses, "scores": scores}`` (``scores`` optional).
 
+On the cloud track (``track="cloud"``, ``dg16m evaluate --predictor X --track cloud``) the
+observation is :func:`dg16m_env.subjects.cloud_observation.cloud_observation` instead: no mesh.
+See "The cloud track" below for its keys.
+
 A bare return must be an array object (numpy, or anything with ``__array__``; torch tensors are
 moved to the CPU first); inside a tuple or dict, anything ``np.asarray`` takes (lists too). Float
 or integer dtypes only; everything is converted to float64. A call should not depend on earlier calls: after a
@@ -63,6 +68,40 @@ succeed (both hands 5 m away from the object) for each failed object, as many as
 the predictor returned for any object (:func:`failed_placeholders`), so a failed object scores 0
 and weighs as much as an answered one; it never leaves the denominator. The failures are listed in
 the submission's metadata.
+
+The cloud track
+---------------
+A robot sees an object through its depth cameras, never its mesh. ``track="cloud"`` scores a
+predictor on that footing; the harness, not the predictor, makes the observation:
+
+* per object, ``n_cameras`` (default 2) depth cameras at poses drawn from
+  ``object_seed(camera_seed, "cameras:<object id>")`` (fixed per object by the benchmark and
+  ``camera_seed``, default 0: the same for every predictor), 128 x 128 pixels, 45 degrees
+  vertical field of view, ray cast on the object's mesh in this process (no OpenGL);
+* a seeded sensor model (``noise="kinect"``, the default: axial depth noise ``sigma(z) = 0.0012 +
+  0.0019 (z - 0.4)^2`` m, pixels missing at grazing angles from 65 degrees on and at depth
+  edges; ``noise="none"``: ideal depth), seeded by ``object_seed(noise_seed, "noise:<object
+  id>")``;
+* the observation holds ``points`` (P, 3) float32 (every depth pixel back-projected, P varies),
+  ``normals`` (P, 3) float32 estimated from the noisy depth image (3 x 3 neighbourhoods, turned
+  toward the camera), ``pixels`` (P, 3) int32 (camera, row, column), ``depth`` (C, H, W) float32
+  (m along each optical axis, 0 = missing), ``intrinsics`` (3, 3) (K, pixels),
+  ``camera_poses`` (C, 4, 4) (camera -> object frame, OpenCV axes: x right, y down, z forward)
+  and ``fovy_deg``; no ``mesh_vertices``, ``mesh_faces``, ``bounds``, ``object_id`` or ``family``
+  (an id names a procedural shape, which the generator could rebuild). Everything else of the
+  contract (the object frame, the return value, the limits) is as above.
+
+The harness enforces it. The mesh never leaves this process, and where Linux Landlock is
+available (:mod:`dg16m_env.subjects.sandbox`) the child, before importing the target, makes
+itself unable to read the benchmark file, the mesh folder and the package's data folder
+(reading any of them raises ``PermissionError``, which fails that object). Where Landlock is
+unavailable the run goes on with a warning and records ``"sandbox": "none"``. The submission's
+metadata records the run's provenance under ``"track"``
+(:func:`dg16m_env.subjects.track.track_record`: the track's name, the harness version, the
+noise model and seed, the cameras and their seed, the sha256 of the predictor's source file, the
+sandbox); a mesh-track run records ``{"name": "mesh", ...}``, and a file without the key is
+mesh-track by construction. The record is self-declared, as the tracks of GraspNet-1Billion
+are: the leaderboard shows tracks apart and never ranks one against the other.
 
 The child process and its supervision (limits, messages, the checks of what it returns) are
 :mod:`dg16m_env.subjects.predictor_process`; this module runs a predictor over a benchmark's
@@ -85,6 +124,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from dg16m_env.benchmark.ref import BenchmarkRef
+    from dg16m_env.subjects.cloud_observation import CloudTrack
 from dg16m_env.subjects.predictor_process import (
     _METADATA_ERROR_BYTES,
     PredictorError,
@@ -120,6 +160,9 @@ class PredictorRun:
         seconds: object id -> wall seconds from sending the observation to the answer (s).
         target: the predictor's target.
         restarts: child processes started after a timeout or a death.
+        sandbox: the read restriction its processes reported (:mod:`dg16m_env.subjects.sandbox`:
+            ``"landlock-abi-N"``, or ``"none"`` where it was unavailable; the weakest of them);
+            None when none was asked for.
     """
 
     poses: dict[str, np.ndarray] = field(default_factory=dict)
@@ -128,6 +171,7 @@ class PredictorRun:
     seconds: dict[str, float] = field(default_factory=dict)
     target: str = ""
     restarts: int = 0
+    sandbox: str | None = None
 
     @property
     def object_ids(self) -> list[str]:
@@ -143,6 +187,7 @@ class PredictorRun:
             "succeeded": len(self.poses),
             "failed": len(self.errors),
             "restarts": self.restarts,
+            "sandbox": self.sandbox,
             "dual_grasps": int(sum(len(p) for p in self.poses.values())),
             "seconds_total": float(sum(seconds)),
             "seconds_max": float(max(seconds, default=0.0)),
@@ -156,9 +201,14 @@ class PredictorRun:
         )
 
 
-def _object_id(observation: Any, run: PredictorRun) -> str:
-    """The observation's object id (a new, non-empty str)."""
-    object_id = observation.get("object_id") if isinstance(observation, Mapping) else None
+def _object_id(observation: Any, run: PredictorRun) -> tuple[str, Any]:
+    """The object id (a new, non-empty str) and the observation of an item of ``observations``:
+    a dict with its ``object_id``, or an ``(object id, observation)`` pair (an observation
+    without the id, e.g. the cloud track's)."""
+    if isinstance(observation, tuple) and len(observation) == 2:
+        object_id, observation = observation
+    else:
+        object_id = observation.get("object_id") if isinstance(observation, Mapping) else None
     if not isinstance(object_id, str) or not object_id:
         raise PredictorError(
             "observations: expected dicts with a non-empty str 'object_id', found "
@@ -166,7 +216,11 @@ def _object_id(observation: Any, run: PredictorRun) -> str:
         )
     if object_id in run.seconds:
         raise PredictorError(f"observations: expected unique object ids, found {object_id!r} twice")
-    return object_id
+    if not isinstance(observation, Mapping):
+        raise PredictorError(
+            f"observations: expected dicts, found {type(observation).__name__} for {object_id!r}"
+        )
+    return object_id, observation
 
 
 def run_predictor(
@@ -175,15 +229,20 @@ def run_predictor(
     *,
     max_grasps: int = 100,
     progress: bool = False,
+    forbidden: Iterable[str | os.PathLike[str]] | None = None,
 ) -> PredictorRun:
     """Run ``spec.target`` on every observation in a child process (see the module docstring).
 
     Args:
         spec: the target and its limits.
         observations: observation dicts (:func:`dg16m_env.subjects.observation.object_observation`),
-            consumed lazily, one at a time; each needs a unique str ``object_id``.
+            consumed lazily, one at a time; each needs a unique str ``object_id``, or is an
+            ``(object id, observation)`` pair (only the observation is sent).
         max_grasps: dual grasps per object at most (K <= max_grasps).
         progress: show a progress bar (and each failure) on stderr.
+        forbidden: paths the child must not read
+            (:func:`dg16m_env.subjects.sandbox.restrict_reading`, before the target is imported;
+            recorded in :attr:`PredictorRun.sandbox`); None: no restriction.
 
     Returns:
         Per object: the validated grasps, or the error (timeouts, deaths, exceptions and invalid
@@ -202,27 +261,30 @@ def run_predictor(
     max_grasps = int(max_grasps)
     run = PredictorRun(target=spec.target)
     workdir = Path(tempfile.mkdtemp(prefix="dg16m-predictor-"))  # private: mode 0700
-    worker = _Worker(spec, max_grasps, workdir)
+    blocked = None if forbidden is None else tuple(os.fspath(p) for p in forbidden)
+    worker = _Worker(spec, max_grasps, workdir, blocked)
     bar = None
     try:
         try:
             worker.start()
         except _StartError as exc:
             raise PredictorError(f"predictor {spec.target!r} failed to start: {exc}") from None
+        run.sandbox = worker.sandbox
         if progress:
             from dg16m_core.progress import progress_bar
 
             total = len(observations) if hasattr(observations, "__len__") else None
             bar = progress_bar(total=total, unit="object", desc="predictor")
         broken: str | None = None  # why no child can run the rest
-        for index, observation in enumerate(observations):
-            object_id = _object_id(observation, run)
+        for index, item in enumerate(observations):
+            object_id, observation = _object_id(item, run)
             started = time.perf_counter()
             outcome: tuple[np.ndarray, np.ndarray | None] | str
             if broken is None and not worker.alive:
                 try:
                     worker.start()
                     run.restarts += 1
+                    run.sandbox = _weakest(run.sandbox, worker.sandbox)
                 except _StartError as exc:
                     reason = str(exc).splitlines()[-1] if str(exc) else "unknown"
                     broken = f"not run: the predictor could not be restarted: {reason}"
@@ -254,25 +316,45 @@ def run_predictor(
     return run
 
 
+def _weakest(a: str | None, b: str | None) -> str | None:
+    """The weaker of two children's sandboxes (``"none"`` wins; None: not reported)."""
+    if a is None or b is None:
+        return a or b
+    return "none" if "none" in (a, b) else a
+
+
 # --------------------------------------------------------------------------------------------
 # Submissions
 
 
 class _Observations:
-    """The benchmark's observations, built one at a time (sized, for the progress bar)."""
+    """The benchmark's observations, built one at a time (sized, for the progress bar): mesh
+    track, the observation dicts; cloud track (``cloud`` given), ``(object id, cloud
+    observation)`` pairs."""
 
-    def __init__(self, ref: BenchmarkRef, mesh_root: Path | None, n_points: int, seed: int) -> None:
+    def __init__(
+        self,
+        ref: BenchmarkRef,
+        mesh_root: Path | None,
+        n_points: int,
+        seed: int,
+        cloud: CloudTrack | None = None,
+    ) -> None:
         self.ref, self.mesh_root, self.n_points, self.seed = ref, mesh_root, n_points, seed
+        self.cloud = cloud
 
     def __len__(self) -> int:
         return len(self.ref.benchmark.objects)
 
-    def __iter__(self) -> Iterator[dict[str, Any]]:
+    def __iter__(self) -> Iterator[dict[str, Any] | tuple[str, dict[str, Any]]]:
         from dg16m_env.subjects.observation import object_observation
 
         for obj in self.ref.benchmark.objects:
             grasp_object = obj.load(self.mesh_root)
-            yield object_observation(grasp_object, n_points=self.n_points, seed=self.seed)
+            if self.cloud is not None:
+                yield obj.object_id, self.cloud.observe(grasp_object)
+            else:
+                yield object_observation(grasp_object, n_points=self.n_points, seed=self.seed)
 
 
 def _metadata_errors(
@@ -299,6 +381,8 @@ def submission_from_predictor(
     seed: int = 0,
     max_grasps: int = 100,
     progress: bool = True,
+    track: str = "mesh",
+    cloud: CloudTrack | None = None,
 ) -> tuple[Path, PredictorRun]:
     """Run a predictor on every benchmark object (every object of a subset ref,
     :meth:`~dg16m_env.benchmark.ref.BenchmarkRef.subset`, and only those) and write its
@@ -311,8 +395,15 @@ def submission_from_predictor(
     object; no score): it scores 0, stays in the denominator and weighs as much there as an
     object the predictor answered, so failing on hard objects cannot raise a rate. The metadata
     records ``predictor`` (the target), ``failed_objects`` (id -> the error's summary line,
-    shortened), ``failed_grasps_per_object``, ``n_points``, ``seed``, ``max_grasps`` and the
-    limits.
+    shortened), ``failed_grasps_per_object``, ``n_points``, ``seed``, ``max_grasps``, the
+    limits and ``track`` (:func:`dg16m_env.subjects.track.track_record`).
+
+    ``track="cloud"``: each observation is the cloud track's
+    (:func:`dg16m_env.subjects.cloud_observation.cloud_observation` with ``cloud``, default
+    cameras and noise when None; ``n_points`` and ``seed`` are then unused), and the predictor's
+    process cannot read the benchmark file, its mesh folder or the package's data folder
+    (:mod:`dg16m_env.subjects.sandbox`; where Landlock is unavailable it runs anyway, with a
+    warning, and the metadata says ``"sandbox": "none"``).
 
     Args:
         spec: the predictor and its limits.
@@ -323,6 +414,8 @@ def submission_from_predictor(
         seed: seed of the observations' point clouds.
         max_grasps: dual grasps per object at most.
         progress: show a progress bar on stderr.
+        track: ``"mesh"`` or ``"cloud"`` (:data:`dg16m_env.subjects.track.TRACKS`).
+        cloud: the cloud track's cameras and noise (``track="cloud"`` only).
 
     Returns:
         The file written and the run (every error in full).
@@ -330,7 +423,7 @@ def submission_from_predictor(
     Raises:
         PredictorError: see :func:`run_predictor`.
         BenchmarkError: an unreadable benchmark, a mesh object without ``mesh_root``.
-        ObservationError: a bad ``n_points`` or ``seed``.
+        ObservationError: a bad ``n_points`` or ``seed``, a bad ``track`` or ``cloud``.
     """
     from dg16m_core.checks import check_integer
     from dg16m_env.benchmark.ref import load_benchmark_ref
@@ -340,14 +433,33 @@ def submission_from_predictor(
 
     check_integer("n_points", n_points, minimum=1, error=ObservationError)
     check_integer("seed", seed, minimum=0, error=ObservationError)
+    from dg16m_env.subjects.cloud_observation import CloudTrack
+    from dg16m_env.subjects.track import TRACKS, forbidden_paths, track_record
+
+    if track not in TRACKS:
+        raise ObservationError(f"track: expected one of {TRACKS}, found {track!r}")
+    if cloud is not None and (track != "cloud" or not isinstance(cloud, CloudTrack)):
+        raise ObservationError(
+            f"cloud: expected a CloudTrack with track='cloud', found {type(cloud).__name__} with "
+            f"track={track!r}"
+        )
+    if track == "cloud" and cloud is None:
+        cloud = CloudTrack()
     ref = load_benchmark_ref(benchmark, mesh_root)
     root = Path(mesh_root) if mesh_root is not None else ref.mesh_root
     run = run_predictor(
         spec,
-        _Observations(ref, root, int(n_points), int(seed)),
+        _Observations(ref, root, int(n_points), int(seed), cloud),
         max_grasps=max_grasps,
         progress=progress,
+        forbidden=forbidden_paths(ref.path, root) if cloud is not None else None,
     )
+    if cloud is not None and not (run.sandbox or "").startswith("landlock-"):
+        warnings.warn(
+            "cloud track: the predictor's process could read the benchmark (Linux Landlock is "
+            "unavailable here); the submission records sandbox 'none'",
+            stacklevel=2,
+        )
     failed = failed_placeholders(run.poses)
     poses = {i: run.poses.get(i, failed) for i in ref.object_ids}
     metadata = {
@@ -359,6 +471,13 @@ def submission_from_predictor(
         "max_grasps": int(max_grasps),
         "time_limit_s": spec.time_limit_s,
         "memory_limit_mb": spec.memory_limit_mb,
+        "track": track_record(
+            track,
+            spec.target,
+            path=spec.path,
+            cloud=cloud.record() if cloud is not None else None,
+            sandbox=run.sandbox,
+        ),
     }
     if ref.partial:
         metadata["objects"] = {"subset": ref.object_ids, "of": ref.full_objects}

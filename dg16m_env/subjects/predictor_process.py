@@ -396,13 +396,15 @@ def _on_sigterm(owner: int) -> Callable[[int, Any], None]:
 @dataclass(frozen=True)
 class _ChildJob:
     """What a child runs: the target and its import path, its memory limit, the most dual grasps
-    an answer may hold, and the folder of its results."""
+    an answer may hold, the folder of its results, and the paths it must not read (None: no
+    sandbox; :func:`dg16m_env.subjects.sandbox.restrict_reading`)."""
 
     target: str
     path: tuple[str, ...]
     memory_limit_mb: int
     max_grasps: int
     workdir: str
+    forbidden: tuple[str, ...] | None = None
 
 
 def _child_main(conn: Connection, job: _ChildJob, start_method: str | None = None) -> None:
@@ -425,8 +427,13 @@ def _child_main(conn: Connection, job: _ChildJob, start_method: str | None = Non
 def _serve(conn: Connection, job: _ChildJob) -> None:
     """:func:`_child_main`'s work: the import, then the calls."""
     target, memory_limit_mb, max_grasps = job.target, job.memory_limit_mb, job.max_grasps
+    sandbox = None
     try:
         _set_limits(memory_limit_mb)
+        if job.forbidden is not None:  # before the import: the target's code runs restricted
+            from dg16m_env.subjects.sandbox import restrict_reading
+
+            sandbox = restrict_reading(job.forbidden)
         predict = load_target(target, job.path)
         if not callable(predict):
             raise PredictorError(
@@ -438,7 +445,7 @@ def _serve(conn: Connection, job: _ChildJob) -> None:
         message = str(exc) if isinstance(exc, PredictorError) else _describe(exc, memory_limit_mb)
         _send(conn, {"kind": "startup_error", "message": message})
         return
-    _send(conn, {"kind": "ready"})
+    _send(conn, {"kind": "ready", "sandbox": sandbox})
     while True:
         try:
             request = conn.recv()
@@ -488,8 +495,16 @@ def _exit_description(exitcode: int | None) -> str:
 class _Worker:
     """One child process at a time: start, ask, stop (see the module docstring)."""
 
-    def __init__(self, spec: PredictorSpec, max_grasps: int, workdir: Path) -> None:
+    def __init__(
+        self,
+        spec: PredictorSpec,
+        max_grasps: int,
+        workdir: Path,
+        forbidden: tuple[str, ...] | None = None,
+    ) -> None:
         self.spec = spec
+        self.forbidden = forbidden
+        self.sandbox: str | None = None  # what the last child reported (None: not asked)
         self.max_grasps = max_grasps
         self.workdir = workdir
         self.process: BaseProcess | None = None
@@ -515,6 +530,7 @@ class _Worker:
             self.spec.memory_limit_mb,
             self.max_grasps,
             str(self.workdir),
+            self.forbidden,
         )
         # the parent's default start method: the child's own default becomes "spawn"
         args = (child_conn, job, multiprocessing.get_start_method())
@@ -528,6 +544,8 @@ class _Worker:
         message = self._receive(limit)
         self.startup_s = time.monotonic() - started
         if isinstance(message, dict) and message.get("kind") == "ready":
+            sandbox = message.get("sandbox")
+            self.sandbox = sandbox if isinstance(sandbox, str) else None
             return
         self.stop()
         if isinstance(message, dict) and message.get("kind") == "startup_error":

@@ -43,6 +43,7 @@ from dg16m_env.subjects.submission import (
     _names,
     _show,
 )
+from dg16m_env.subjects.track import track_name
 
 
 @dataclass
@@ -271,6 +272,11 @@ class RootAttributes:
             return
         if not isinstance(meta, dict):
             self.log.add(place, f"expected a JSON object, found a JSON {type(meta).__name__}")
+            return
+        try:  # the track it declares (none: the mesh track), dg16m_env.subjects.track
+            track_name(meta)
+        except ValueError as exc:
+            self.log.add(place, str(exc))
             return
         self.contents.metadata = meta
 

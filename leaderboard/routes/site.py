@@ -15,7 +15,7 @@ from ..page import ASSETS, asset_text, render_index, render_submission
 from ..query_checks import NotFoundError, check_id
 from ..views import board_view, submission_view
 from .answers import answer
-from .standings import page_href, page_query
+from .standings import page_href, page_query, track_query
 
 if TYPE_CHECKING:
     from ..board import Board
@@ -33,14 +33,15 @@ class SiteRoutes:
     async def index(self, request: Request) -> Response:
         """The board (HTML), a page of rows."""
         page, limit = page_query(request)
+        track = track_query(request)
 
         def render() -> Response:
-            view = board_view(self.board, page=page, limit=limit)
+            view = board_view(self.board, page=page, limit=limit, track=track)
             text = render_index(
                 view,
                 link=lambda i: f"/submissions/{i}",
                 assets="/assets/",
-                page_link=page_href("/", limit),
+                page_link=page_href("/", limit, track),
             )
             return Response(text, media_type="text/html; charset=utf-8")
 

@@ -253,9 +253,11 @@ class CollectReport:
 @contextlib.contextmanager
 def _minari_root(root: Path) -> Iterator[None]:
     """Minari reads its root from ``MINARI_DATASETS_PATH`` on every call: point it at
-    ``root`` while inside (not thread-safe: the process environment)."""
+    ``root`` while inside (not thread-safe: the process environment). Made absolute: Minari
+    joins a relative root onto its own paths under it when it adds episodes to a dataset, so
+    ``--out runs/demos`` failed on the second batch of episodes (issue 56)."""
     previous = os.environ.get("MINARI_DATASETS_PATH")
-    os.environ["MINARI_DATASETS_PATH"] = str(root)
+    os.environ["MINARI_DATASETS_PATH"] = str(Path(root).absolute())
     try:
         yield
     finally:
