@@ -268,3 +268,39 @@ def test_pybullet_objects_are_scaled_for_two_arms(tmp_path) -> None:
     assert {k: e["sha256"] for k, e in again["entries"].items()} == {
         k: e["sha256"] for k, e in manifest["entries"].items()
     }
+
+
+def test_a_resume_keeps_failures_unless_asked_to_retry(built, exclusion, tmp_path) -> None:
+    out, build = built
+    copy = tmp_path / "copy"
+    import shutil
+
+    shutil.copytree(out, copy)
+    victim = sorted(build.ok_entries())[0]
+    manifest = json.loads((copy / "manifest.json").read_text())
+    manifest["entries"][victim] = {
+        "status": "failed",
+        "files": {},
+        "error": "made up",
+        "split": "x",
+    }
+    (copy / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True))
+    done: list[str] = []
+    task = build_module._task
+
+    def counted(item, *args):
+        done.append(item.object_id)
+        return task(item, *args)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(build_module, "_task", counted)
+        kept = build_dataset(copy, RECIPE, exclusion, progress=False, card=False, log=_quiet)
+        assert victim not in done  # its verdict is kept ...
+        assert kept.manifest["entries"][victim]["error"] == "made up"
+        assert len(done) == 1  # ... and one more procedural object makes up the count
+        assert len(kept.ok_entries()) == RECIPE.objects
+        done.clear()
+        build_dataset(
+            copy, RECIPE, exclusion, progress=False, card=False, retry_failed=True, log=_quiet
+        )
+    assert done == [victim]

@@ -142,6 +142,7 @@ def build_dataset(
     address: str | None = None,
     progress: bool = True,
     card: bool = True,
+    retry_failed: bool = False,
     log: Callable[[str], None] = print,
 ) -> DatasetBuild:
     """Build (or resume) the dataset ``recipe`` describes into ``out`` (module docstring).
@@ -154,6 +155,9 @@ def build_dataset(
         workers, backend, address: local processes, or Ray (``backend="ray"``).
         progress: progress bars.
         card: write the card (:func:`~dataset_gen.collection.card.write_card`) at the end.
+        retry_failed: try again the imports and objects that failed in an earlier run (by
+            default their verdicts are kept: with the same recipe and parameters they fail the
+            same way).
         log: where one-line stage messages go.
 
     Raises:
@@ -177,6 +181,7 @@ def build_dataset(
             ids=recipe.sweethome3d_ids,
             workers=workers,
             progress=progress,
+            retry_failed=retry_failed,
         )
         others += items
         build.sources["sweethome3d"] = summary
@@ -189,6 +194,7 @@ def build_dataset(
             limit=recipe.pybullet_limit,
             workers=workers,
             progress=progress,
+            retry_failed=retry_failed,
         )
         others += items
         build.sources["pybullet"] = summary
@@ -218,6 +224,7 @@ def build_dataset(
             progress=progress,
             desc="dataset",
             write_every_s=MANIFEST_EVERY_S,
+            keep_failed=not retry_failed,
         )
         missing = recipe.objects - len(build.ok_entries())
         if missing <= 0:

@@ -49,8 +49,9 @@ SAMPLE_GRASPS = 3
 
 LICENCE_URLS = {
     "MIT": "https://opensource.org/licenses/MIT",
-    "CC0": "https://creativecommons.org/publicdomain/zero/1.0/",
+    "CC0-1.0": "https://creativecommons.org/publicdomain/zero/1.0/",
     "CC-BY-3.0": "https://creativecommons.org/licenses/by/3.0/",
+    "CC-BY-3.0-US": "https://creativecommons.org/licenses/by/3.0/us/",
     "Zlib": "https://opensource.org/licenses/Zlib",
 }
 """Licence name (as the sources record it) -> its text's URL."""
@@ -293,7 +294,7 @@ def croissant(summary: Mapping[str, Any], folder: Path, name: str) -> dict[str, 
         ),
         "conformsTo": "http://mlcommons.org/croissant/1.0",
         "citeAs": CITATION,
-        "license": [LICENCE_URLS.get(lic, lic) for lic in licences],
+        "license": sorted({LICENCE_URLS.get(lic, lic) for lic in licences}),
         "url": "https://arxiv.org/abs/2503.08358",
         "version": "1.0.0",
         "keywords": ["dual-arm grasping", "force closure", "robotics", "DG16M"],

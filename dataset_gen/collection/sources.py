@@ -132,11 +132,13 @@ def sweethome3d_items(
     ids: Sequence[str] | None = None,
     workers: int = 1,
     progress: bool = True,
+    retry_failed: bool = False,
 ) -> tuple[list[DatasetItem], dict[str, Any]]:
     """Import the usable Sweet Home 3D models that are not benchmark ids into
     ``out/sources/sweethome3d`` (resumable) and return their items and a summary (usable,
     imported, failed with reasons, left out as benchmark files). ``ids``: only these models
-    (of the usable ones; for a small dataset or a test).
+    (of the usable ones; for a small dataset or a test). Models whose import failed in an
+    earlier run keep their verdict unless ``retry_failed``.
 
     Raises:
         DatasetError: the furniture libraries are not installed.
@@ -150,7 +152,13 @@ def sweethome3d_items(
     chosen = [e for e in entries if e.object_id not in exclusion.ids]
     folder = out / SOURCES_FOLDER / "sweethome3d"
     manifest = sweethome3d.import_library(
-        folder, chosen, root=root, seed=recipe.import_seed, workers=workers, progress=progress
+        folder,
+        chosen,
+        root=root,
+        seed=recipe.import_seed,
+        workers=workers,
+        progress=progress,
+        keep_failed=not retry_failed,
     )
     items, left_out = _imported_items(folder, manifest, recipe, exclusion, _sweethome3d_origin)
     return items, _import_summary(len(entries), len(entries) - len(chosen), manifest, left_out)
@@ -174,6 +182,7 @@ def pybullet_items(
     limit: int | None = None,
     workers: int = 1,
     progress: bool = True,
+    retry_failed: bool = False,
 ) -> tuple[list[DatasetItem], dict[str, Any]]:
     """Import pybullet's ``random_urdfs`` (the first ``limit``, default all) into
     ``out/sources/pybullet`` (resumable) and return their items and a summary.
@@ -187,7 +196,12 @@ def pybullet_items(
         raise DatasetError(str(exc)) from None
     folder = out / SOURCES_FOLDER / "pybullet"
     manifest = pybullet_objects.import_random_urdfs(
-        folder, found, seed=recipe.import_seed, workers=workers, progress=progress
+        folder,
+        found,
+        seed=recipe.import_seed,
+        workers=workers,
+        progress=progress,
+        keep_failed=not retry_failed,
     )
     items, left_out = _imported_items(folder, manifest, recipe, exclusion, _pybullet_origin)
     return items, _import_summary(len(found), 0, manifest, left_out)

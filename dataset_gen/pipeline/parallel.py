@@ -231,6 +231,7 @@ def run_resumable(
     desc: str = "objects",
     on_entry: Callable[[str, dict[str, Any]], None] | None = None,
     write_every_s: float = 0.0,
+    keep_failed: bool = False,
 ) -> dict[str, Any]:
     """Run ``task(item, *args)`` for every item not yet finished in ``root``; return the manifest.
 
@@ -240,6 +241,10 @@ def run_resumable(
     ``folders`` by killed atomic writes are removed first, and again once every task returned
     (on Ray a task whose node died is retried on another node; its killed attempt may have left
     one).
+
+    ``keep_failed``: a ``failed`` entry counts as finished too (for a task whose failures are
+    a function of its inputs and ``parameters``, which the manifest pins: a rerun would fail the
+    same way); by default failed objects are tried again.
 
     ``write_every_s``: the manifest is rewritten after each entry (0, the default) or at most
     this often (s), and always when the run ends or is interrupted: a folder of thousands of
@@ -276,6 +281,8 @@ def run_resumable(
 
     def finished(object_id: str) -> bool:
         entry = manifest["entries"].get(object_id)
+        if entry and keep_failed and entry["status"] == "failed":
+            return True
         return (
             bool(entry)
             and entry["status"] == "ok"

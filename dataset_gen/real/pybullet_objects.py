@@ -145,9 +145,10 @@ def import_random_urdfs(
     seed: int = 0,
     workers: int = 1,
     progress: bool = True,
+    keep_failed: bool = False,
 ) -> dict[str, Any]:
-    """Import ``items`` into ``out`` (resumable: finished objects are skipped); returns the
-    manifest (kind :data:`IMPORT_KIND`).
+    """Import ``items`` into ``out`` (resumable: finished objects are skipped, and with
+    ``keep_failed`` the failed ones too); returns the manifest (kind :data:`IMPORT_KIND`).
 
     Raises:
         PybulletObjectsError: ``out`` holds an import made with another seed.
@@ -167,4 +168,5 @@ def import_random_urdfs(
         workers=workers,
         progress=progress,
         desc="pybullet",
+        keep_failed=keep_failed,
     )

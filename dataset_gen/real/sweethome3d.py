@@ -590,8 +590,10 @@ def import_library(
     repair: RepairParameters | None = None,
     workers: int = 1,
     progress: bool = True,
+    keep_failed: bool = False,
 ) -> dict[str, Any]:
-    """Import ``entries`` into ``out`` (resumable: finished objects are skipped); writes
+    """Import ``entries`` into ``out`` (resumable: finished objects are skipped, and with
+    ``keep_failed`` the ones that failed too: a repair fails the same way again); writes
     ``manifest.json`` (kind :data:`IMPORT_KIND`) and ``ATTRIBUTION.md``; returns the manifest.
 
     Raises:
@@ -619,6 +621,7 @@ def import_library(
         workers=workers,
         progress=progress,
         desc="import",
+        keep_failed=keep_failed,
     )
     write_attribution(root_path, list(manifest["entries"].values()))
     return manifest

@@ -139,6 +139,12 @@ def _build_arguments(build: argparse.ArgumentParser) -> None:
         default=None,
         help="only the first N of pybullet's 1,000 random_urdfs (default: all)",
     )
+    build.add_argument(
+        "--retry-failed",
+        action="store_true",
+        help="try again the imports and objects that failed in an earlier run (by default a "
+        "rerun keeps their verdicts: with the same options they fail the same way)",
+    )
     arguments.add_parallel_arguments(build, "local processes (default: 1)")
     arguments.add_progress_argument(build)
 
@@ -169,6 +175,7 @@ def _build(args: argparse.Namespace) -> int:
                 recipe,
                 exclusion,
                 progress=not args.no_progress,
+                retry_failed=args.retry_failed,
                 **arguments.parallel_options(args),
             )
         except KeyboardInterrupt:
