@@ -313,3 +313,19 @@ def test_the_registered_cloud_predictors_run_on_the_cloud_track(tmp_path: Path, 
     )
     assert run.errors == {}
     assert read_submission(path, object_ids=objects).metadata["track"]["name"] == "cloud"
+
+
+def test_the_provenance_hashes_a_module_target_of_an_installed_package() -> None:
+    """``baselines.cloud_predictor:...`` (the package installed in editable mode, not on
+    ``sys.path``): its source file is found and hashed, not reported "unknown"."""
+    import hashlib
+    import importlib.util
+
+    from dg16m_env.subjects.track import predictor_sha256
+
+    spec = importlib.util.find_spec("baselines.cloud_predictor")
+    assert spec is not None
+    assert spec.origin is not None
+    expected = hashlib.sha256(Path(spec.origin).read_bytes()).hexdigest()
+    assert predictor_sha256("baselines.cloud_predictor:cgdf_robust_predictor") == expected
+    assert predictor_sha256("no_such_package.module:f") == "unknown"

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.machinery
+import importlib.util
 import os
 import sys
 from collections.abc import Iterable, Mapping, Sequence
@@ -64,8 +65,12 @@ def _source_file(target: str, path: Sequence[str]) -> Path | None:
         return file if file.is_file() else None
     search: list[str] | None = [*path, *sys.path]
     spec = None
-    for part in module.split("."):
+    for depth, part in enumerate(module.split(".")):
         spec = importlib.machinery.PathFinder.find_spec(part, search)
+        if spec is None and depth == 0:
+            # a top-level package another finder knows (an editable install): asking for a
+            # top-level name imports nothing
+            spec = importlib.util.find_spec(part)
         if spec is None:
             return None
         search = list(spec.submodule_search_locations or [])
