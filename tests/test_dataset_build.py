@@ -37,6 +37,19 @@ def built(tmp_path_factory, exclusion) -> tuple[Path, build_module.DatasetBuild]
     return out, build_dataset(out, RECIPE, exclusion, progress=False, log=_quiet)
 
 
+def _count_tasks(patch: pytest.MonkeyPatch) -> list[str]:
+    """The ids of the objects the build runs its task on from now on (in order)."""
+    done: list[str] = []
+    task = build_module._task
+
+    def counted(item, *args):
+        done.append(item.object_id)
+        return task(item, *args)
+
+    patch.setattr(build_module, "_task", counted)
+    return done
+
+
 def _bytes(folder: Path) -> dict[str, bytes]:
     """Every file's bytes, by relative path (the data, the manifest and the card)."""
     return {
@@ -114,15 +127,8 @@ def test_a_resumed_and_a_two_worker_build_give_the_same_bytes(built, exclusion, 
     manifest = json.loads((other / "manifest.json").read_text())
     del manifest["entries"][victim]
     (other / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True))
-    done: list[str] = []
-    task = build_module._task
-
-    def counted(item, *args):
-        done.append(item.object_id)
-        return task(item, *args)
-
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(build_module, "_task", counted)
+        done = _count_tasks(patch)
         build_dataset(other, RECIPE, exclusion, progress=False, log=_quiet)
     assert done == [victim]
     assert _bytes(other) == expected
@@ -285,15 +291,8 @@ def test_a_resume_keeps_failures_unless_asked_to_retry(built, exclusion, tmp_pat
         "split": "x",
     }
     (copy / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True))
-    done: list[str] = []
-    task = build_module._task
-
-    def counted(item, *args):
-        done.append(item.object_id)
-        return task(item, *args)
-
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(build_module, "_task", counted)
+        done = _count_tasks(patch)
         kept = build_dataset(copy, RECIPE, exclusion, progress=False, card=False, log=_quiet)
         assert victim not in done  # its verdict is kept ...
         assert kept.manifest["entries"][victim]["error"] == "made up"

@@ -7,17 +7,17 @@ refused. Also: inputs are checked before the partial-run banner, and ``--policy`
 from __future__ import annotations
 
 import json
-import os
 import signal
 from pathlib import Path
 
 import numpy as np
 import pytest
+from checkpoint_stops import ctrl_c, sigterm, stop_after
 
 from dg16m_core.cli import main
 from dg16m_core.hashing import file_sha256
 from dg16m_env.evaluators import load_benchmark_ref, read_results
-from dg16m_env.evaluators.checkpoint import ObjectCheckpoint, checkpoint_folder
+from dg16m_env.evaluators.checkpoint import checkpoint_folder
 from dg16m_env.physics import success_probabilities
 from dg16m_env.subjects.submission_writer import PartialSubmissionWarning, write_submission
 
@@ -45,20 +45,6 @@ def uninterrupted(three, tmp_path_factory) -> bytes:
     return out.read_bytes()
 
 
-def _stop_after(patch, k: int, stop) -> None:
-    """Stop the run (``stop()``) right after the k-th object was checkpointed."""
-    original = ObjectCheckpoint.save
-    saved = []
-
-    def save(self, *args, **kwargs):
-        original(self, *args, **kwargs)
-        saved.append(args)
-        if len(saved) == k:
-            stop()
-
-    patch.setattr(ObjectCheckpoint, "save", save)
-
-
 def _count_simulated(patch) -> list[str]:
     simulated: list[str] = []
     task = success_probabilities._task
@@ -71,15 +57,7 @@ def _count_simulated(patch) -> list[str]:
     return simulated
 
 
-def _ctrl_c():
-    raise KeyboardInterrupt
-
-
-def _sigterm():
-    os.kill(os.getpid(), signal.SIGTERM)
-
-
-@pytest.mark.parametrize("stop", [_ctrl_c, _sigterm], ids=["ctrl-c", "sigterm"])
+@pytest.mark.parametrize("stop", [ctrl_c, sigterm], ids=["ctrl-c", "sigterm"])
 def test_an_interrupted_gsr_resumes_where_it_stopped_with_the_same_bytes(
     three, uninterrupted, tmp_path, capsys, monkeypatch, stop
 ):
@@ -87,7 +65,7 @@ def test_an_interrupted_gsr_resumes_where_it_stopped_with_the_same_bytes(
     folder = checkpoint_folder(out, "gsr")
     argv = ["evaluate", str(three), "--evaluators", "fce,gsr", "--out", str(out), *FAST]
     with monkeypatch.context() as patch:
-        _stop_after(patch, 1, stop)
+        stop_after(patch, 1, stop)
         assert main(argv) == 130
     err = capsys.readouterr().err
     assert "interrupted during gsr" in err
@@ -121,7 +99,7 @@ def test_the_library_call_checkpoints_and_removes_its_folder(three, tmp_path):
     ev = make("gsr", benchmark=ref, n_perturbations=1)
     folder = tmp_path / "c"
     with pytest.MonkeyPatch.context() as patch:
-        _stop_after(patch, 2, _ctrl_c)
+        stop_after(patch, 2, ctrl_c)
         with pytest.raises(KeyboardInterrupt):
             ev.evaluate(three, checkpoint=CheckpointRequest(folder))
     assert len(list(folder.glob("*.npz"))) == 2
@@ -134,7 +112,7 @@ def test_without_resume_a_checkpoint_is_discarded(three, uninterrupted, tmp_path
     out = tmp_path / "r.json"
     argv = ["evaluate", str(three), "--evaluators", "fce,gsr", "--out", str(out), *FAST]
     with pytest.MonkeyPatch.context() as patch:
-        _stop_after(patch, 2, _ctrl_c)
+        stop_after(patch, 2, ctrl_c)
         assert main(argv) == 130
     with pytest.MonkeyPatch.context() as patch:
         simulated = _count_simulated(patch)
@@ -147,7 +125,7 @@ def test_a_checkpoint_of_another_run_is_refused(three, tmp_path, capsys):
     out = tmp_path / "r.json"
     argv = ["evaluate", str(three), "--evaluators", "gsr", "--out", str(out), *FAST]
     with pytest.MonkeyPatch.context() as patch:
-        _stop_after(patch, 1, _ctrl_c)
+        stop_after(patch, 1, ctrl_c)
         assert main(argv) == 130
     capsys.readouterr()
     folder = checkpoint_folder(out, "gsr")
@@ -175,7 +153,7 @@ def test_a_checkpoint_of_another_submission_is_refused(three, tmp_path, capsys):
     out = tmp_path / "r.json"
     argv = ["evaluate", str(three), "--evaluators", "gsr", "--out", str(out), *FAST]
     with pytest.MonkeyPatch.context() as patch:
-        _stop_after(patch, 1, _ctrl_c)
+        stop_after(patch, 1, ctrl_c)
         assert main(argv) == 130
     capsys.readouterr()
     bench = load_benchmark_ref().benchmark

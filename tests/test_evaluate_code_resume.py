@@ -7,12 +7,11 @@ told apart by the sha256 of their module's source and their torch weights
 from __future__ import annotations
 
 import json
-import os
-import signal
 from pathlib import Path
 
 import numpy as np
 import pytest
+from checkpoint_stops import ctrl_c, sigterm, stop_after
 
 from dg16m_core.cli import main
 from dg16m_env.evaluators import read_results
@@ -84,29 +83,7 @@ def _policy_argv(code: Path, out: Path) -> list[str]:
 ARGVS = {"classifier": _classifier_argv, "policy": _policy_argv}
 
 
-def _stop_after(patch, k: int, stop) -> None:
-    """Stop the run (``stop()``) right after the k-th object (episode) was checkpointed."""
-    original = ObjectCheckpoint.save
-    saved = []
-
-    def save(self, *args, **kwargs):
-        original(self, *args, **kwargs)
-        saved.append(args)
-        if len(saved) == k:
-            stop()
-
-    patch.setattr(ObjectCheckpoint, "save", save)
-
-
-def _ctrl_c():
-    raise KeyboardInterrupt
-
-
-def _sigterm():
-    os.kill(os.getpid(), signal.SIGTERM)
-
-
-@pytest.mark.parametrize("stop", [_ctrl_c, _sigterm], ids=["ctrl-c", "sigterm"])
+@pytest.mark.parametrize("stop", [ctrl_c, sigterm], ids=["ctrl-c", "sigterm"])
 @pytest.mark.parametrize("kind", ["classifier", "policy"])
 def test_an_interrupted_code_evaluation_resumes_with_the_same_bytes(
     code, tmp_path, capsys, monkeypatch, kind, stop
@@ -119,7 +96,7 @@ def test_an_interrupted_code_evaluation_resumes_with_the_same_bytes(
     folder = checkpoint_folder(out, kind)
     capsys.readouterr()
     with monkeypatch.context() as patch:
-        _stop_after(patch, 2, stop)
+        stop_after(patch, 2, stop)
         assert main(argv) == 130
     err = capsys.readouterr().err
     assert f"interrupted during {kind}" in err
@@ -165,7 +142,7 @@ def test_a_checkpoint_of_other_code_is_refused(code, tmp_path, capsys, monkeypat
     out = tmp_path / "r.json"
     argv = [*_classifier_argv(folder, out), "--no-progress"]
     with monkeypatch.context() as patch:
-        _stop_after(patch, 1, _ctrl_c)
+        stop_after(patch, 1, ctrl_c)
         assert main(argv) == 130
     capsys.readouterr()
     _write(folder, "my_classifier.py", CLASSIFIER.replace("axis=1)", "axis=1) * 2"))

@@ -93,12 +93,15 @@ class DatasetBuild:
         sources: per imported source, its import summary.
         disjoint: the split check's record (:func:`~dataset_gen.collection.splits.check_disjoint`).
         items: every object the build asked for, in order.
+        summary: the card's numbers (:func:`~dataset_gen.collection.card.dataset_summary`;
+            empty when the build wrote no card).
     """
 
     manifest: dict[str, Any]
     sources: dict[str, Any] = field(default_factory=dict)
     disjoint: dict[str, Any] = field(default_factory=dict)
     items: list[DatasetItem] = field(default_factory=list)
+    summary: dict[str, Any] = field(default_factory=dict)
 
     def ok_entries(self) -> dict[str, dict[str, Any]]:
         """The finished objects' entries."""
@@ -234,7 +237,9 @@ def build_dataset(
     build.disjoint = check_disjoint(build.manifest["entries"], exclusion)
     if card:
         log("writing the card ...")
-        write_card(out, build.manifest, disjoint=build.disjoint, sources=build.sources)
+        build.summary = write_card(
+            out, build.manifest, disjoint=build.disjoint, sources=build.sources
+        )
     return build
 
 

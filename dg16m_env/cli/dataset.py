@@ -84,12 +84,19 @@ def register(subparsers: Any) -> None:
 
 
 def _sources(text: str) -> tuple[str, ...]:
-    names = tuple(s.strip() for s in text.split(",") if s.strip())
+    names = tuple(arguments.listed_ids(text))
     if not names:
         raise argparse.ArgumentTypeError(
             f"expected names like procedural,sweethome3d, found {text!r}"
         )
     return names
+
+
+def _model_ids(text: str) -> list[str]:
+    ids = arguments.listed_ids(text)
+    if not ids:
+        raise argparse.ArgumentTypeError(f"expected model ids like a,b,c, found {text!r}")
+    return ids
 
 
 def _build_arguments(build: argparse.ArgumentParser) -> None:
@@ -128,7 +135,7 @@ def _build_arguments(build: argparse.ArgumentParser) -> None:
     )
     build.add_argument(
         "--sweethome3d-ids",
-        type=_sources,
+        type=_model_ids,
         default=None,
         help="only these Sweet Home 3D models, comma-separated (default: every usable one "
         "that is not in a benchmark; 'dg16m objects import-sweethome3d --list' lists them)",
@@ -184,8 +191,7 @@ def _build(args: argparse.Namespace) -> int:
                 "the same command goes on from there"
             )
             raise
-    summary = json.loads((args.out / "card" / "summary.json").read_text(encoding="utf-8"))
-    print("\n".join(_card_lines(summary)))
+    print("\n".join(_card_lines(build.summary)))
     print(f"built in {time.perf_counter() - started:.0f} s; the card: {args.out}/card/README.md")
     built = len(build.ok_entries())
     if built < recipe.objects:

@@ -56,12 +56,14 @@ class TrainingDataError(Dg16mError, ValueError):
 
 @dataclass(frozen=True)
 class ObjectRecord:
-    """One object of a dataset: its id, split, grasp file and mesh file (absolute paths)."""
+    """One object of a dataset: its id, split, grasp file and mesh file (absolute paths) and
+    how many dual grasps its file holds (the manifest's count)."""
 
     object_id: str
     split: str
     grasps: Path
     mesh: Path
+    pairs: int
 
 
 def dataset_objects(folder: str | os.PathLike[str], splits: Sequence[str]) -> list[ObjectRecord]:
@@ -95,7 +97,9 @@ def dataset_objects(folder: str | os.PathLike[str], splits: Sequence[str]) -> li
                 raise TrainingDataError(
                     f"{object_id}: expected {path} (listed in {root}/manifest.json), found none"
                 )
-        records.append(ObjectRecord(object_id, str(entry["split"]), grasps, mesh))
+        records.append(
+            ObjectRecord(object_id, str(entry["split"]), grasps, mesh, int(entry["pairs"]))
+        )
     if not records:
         raise TrainingDataError(f"{root}: expected objects in splits {list(splits)}, found none")
     return records
@@ -303,7 +307,7 @@ class DualGraspDataset(_torch_dataset_base(False)):  # type: ignore[misc]
         self.seed = seed
         self._grasps: OrderedDict[int, ObjectGrasps] = OrderedDict()
         self._grasp_cache = max(1, int(grasp_cache))
-        counts = np.array([_pair_count(Path(folder), r) for r in self.records], dtype=np.int64)
+        counts = np.array([r.pairs for r in self.records], dtype=np.int64)
         self.offsets = np.concatenate([[0], np.cumsum(counts)])
 
     def __len__(self) -> int:
@@ -312,7 +316,13 @@ class DualGraspDataset(_torch_dataset_base(False)):  # type: ignore[misc]
     def _object_grasps(self, index: int) -> ObjectGrasps:
         grasps = self._grasps.get(index)
         if grasps is None:
-            grasps = read_object_grasps(self.records[index].grasps)
+            record = self.records[index]
+            grasps = read_object_grasps(record.grasps)
+            if len(grasps.poses) != record.pairs:
+                raise TrainingDataError(
+                    f"{record.grasps}: expected the {record.pairs} dual grasps its dataset's "
+                    f"manifest lists, found {len(grasps.poses)} (a file changed since the build)"
+                )
             self._grasps[index] = grasps
             while len(self._grasps) > self._grasp_cache:
                 self._grasps.popitem(last=False)
@@ -337,18 +347,6 @@ class DualGraspDataset(_torch_dataset_base(False)):  # type: ignore[misc]
             start, stop = int(self.offsets[index]), int(self.offsets[index + 1])
             order.extend((start + rng.permutation(stop - start)).tolist())
         return order
-
-
-def _pair_count(folder: Path, record: ObjectRecord) -> int:
-    """The object's dual grasps, from its grasp file's shape (no data read)."""
-    try:
-        with h5py.File(record.grasps, "r") as f:
-            return int(f["grasps/grasps"].shape[0])
-    except (OSError, KeyError) as exc:
-        raise TrainingDataError(
-            f"{record.grasps}: expected a DG16M grasp file of {folder}, found "
-            f"{type(exc).__name__}: {exc}"
-        ) from None
 
 
 class DualGraspStream(_torch_dataset_base(True)):  # type: ignore[misc]
