@@ -701,60 +701,11 @@ def solid_or_shell(mesh: Any) -> tuple[str, str]:
     )
 
 
-def _decompose_in_child(
-    mesh: Any,
-    params: Any,
-    cache_dir: Path | None,
-    use_cache: bool,
-    name: str,
-    samples: int,
-    *,
-    on_stage: Any,
-) -> tuple[Any, Any]:
-    """One mesh's CoACD parts and their report, in the child of :func:`_decompose_stoppable`."""
-    from dataset_gen.objects import decomposition as dec
-
-    on_stage("decompose")
-    stats: dict[str, Any] = {}
-    parts = dec.convex_decomposition(
-        mesh, params=params, cache_dir=cache_dir, use_cache=use_cache, name=name, stats=stats
-    )
-    on_stage("report")
-    report = dec.decomposition_report(mesh, parts, samples=samples, stats=stats, name=name)
-    return parts, report
-
-
-def _decompose_stoppable(
-    mesh: Any, params: Any, cache_dir: Path | None, use_cache: bool, name: str, samples: int
-) -> tuple[Any, Any]:
-    """:func:`_decompose_in_child` in a child process (no budget), so that Ctrl-C and SIGTERM
-    stop a CoACD run within a second (compiled code does not see them in its own process) and a
-    crash of CoACD is an error with the signal, not the end of this command.
-
-    Raises:
-        MeshError: CoACD's child crashed (the signal, the CPU seconds, what to try).
-    """
-    from dg16m_core.budget import StageCrashError, run_with_budget
-    from dg16m_core.stopping import sigterm_interrupts
-
-    try:
-        with sigterm_interrupts():  # SIGTERM stops it as Ctrl-C does (exit 130)
-            done = run_with_budget(
-                _decompose_in_child, (mesh, params, cache_dir, use_cache, name, samples), {}
-            )
-    except StageCrashError as exc:
-        raise MeshError(
-            f"{name}: {exc}; try a coarser or thicker mesh (dg16m objects repair with fewer "
-            "--target-faces or a larger --pitch-fraction) or other settings (--preprocess on, "
-            "another --threshold)"
-        ) from None
-    return done.value
-
-
 def _objects_decompose(args: argparse.Namespace) -> int:
     from dataset_gen.objects import decomposition as dec
     from dataset_gen.objects.grasp_object import load_object
     from dg16m_core.atomic import write_json_atomic, write_text_atomic
+    from dg16m_core.stopping import sigterm_interrupts
 
     try:
         params = dec.DecompositionParameters(threshold=args.threshold, preprocess=args.preprocess)
@@ -781,17 +732,28 @@ def _objects_decompose(args: argparse.Namespace) -> int:
         for path in args.meshes
     ]
     entries = []
-    for path, obj in zip(args.meshes, objects, strict=True):
-        print(
-            f"decomposing {path} (CoACD, threshold {params.threshold:g}) ...",
-            file=sys.stderr,
-            flush=True,
-        )
-        parts, report = _decompose_stoppable(
-            obj.mesh, params, args.cache_dir, not args.no_cache, str(path), samples
-        )
-        print(report.format(), flush=True)
-        entries.append((path, obj, parts, report))
+    with sigterm_interrupts():  # SIGTERM stops it as Ctrl-C does (exit 130)
+        for path, obj in zip(args.meshes, objects, strict=True):
+            print(
+                f"decomposing {path} (CoACD, threshold {params.threshold:g}) ...",
+                file=sys.stderr,
+                flush=True,
+            )
+            stats: dict[str, Any] = {}
+            parts = dec.convex_decomposition(  # CoACD in a child process that Ctrl-C stops
+                obj.mesh,
+                params=params,
+                cache_dir=args.cache_dir,
+                use_cache=not args.no_cache,
+                name=str(path),
+                stats=stats,
+                stoppable=True,
+            )
+            report = dec.decomposition_report(
+                obj.mesh, parts, samples=samples, stats=stats, name=str(path)
+            )
+            print(report.format(), flush=True)
+            entries.append((path, obj, parts, report))
     payloads = [
         {
             "mesh": str(path),

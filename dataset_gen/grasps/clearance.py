@@ -132,7 +132,7 @@ class OpenHandClearance:
 
 
 def collision_parts(
-    obj: GraspObject, parts: Sequence[ConvexPart] | None = None
+    obj: GraspObject, parts: Sequence[ConvexPart] | None = None, *, stoppable: bool = False
 ) -> tuple[ConvexPart, ...] | None:
     """The convex parts the generator checks open hands against (:mod:`dataset_gen.grasps.clearance`):
     a mesh's CoACD decomposition (cached, :func:`dataset_gen.objects.decomposition.object_parts`), the
@@ -142,7 +142,9 @@ def collision_parts(
     trials on the shipped procedural benchmark).
 
     ``parts``: the mesh's decomposition when the caller already has it (not read again).
+    ``stoppable``: a command's call, which Ctrl-C and SIGTERM stop within a second also inside
+    CoACD (:func:`dataset_gen.objects.decomposition.convex_decomposition`).
     """
     if obj.parts:
         return None
-    return tuple(parts) if parts is not None else object_parts(obj)
+    return tuple(parts) if parts is not None else object_parts(obj, stoppable=stoppable)

@@ -58,10 +58,13 @@ import dataclasses
 import hashlib
 import json
 import math
+import multiprocessing
 import os
+import signal
 import time
 import warnings
 from collections.abc import Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -91,6 +94,13 @@ DEFAULT_THRESHOLD = 0.01
 
 MIN_RELATIVE_HULL_VOLUME = 1e-9
 """Hulls with volume below this fraction of the mesh's bounding-box volume are dropped."""
+
+CRASH_ADVICE = (
+    "CoACD fails on this mesh; try a coarser or thicker mesh (`dg16m objects repair FILE` with "
+    "fewer --target-faces or a larger --pitch-fraction) or see which decomposition settings end "
+    "(`dg16m objects decompose FILE --preprocess on` or another --threshold)"
+)
+"""What to do when CoACD crashes its child process (:func:`convex_decomposition`, ``stoppable``)."""
 
 _INSTALL_HINT = "convex decomposition needs the 'coacd' package; reinstall dg16m (pip install -e .)"
 
@@ -361,6 +371,64 @@ def _compute(
     return kept
 
 
+def _compute_in_child(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    params: DecompositionParameters,
+    label: str,
+    preprocess_mode: str,
+    *,
+    on_stage: Any,
+) -> tuple[ConvexPart, ...]:
+    """:func:`_compute` in the child process of :func:`_compute_stoppable`."""
+    on_stage("decompose")
+    return _compute(vertices, faces, params, label, preprocess_mode)
+
+
+def _is_a_worker() -> bool:
+    """Whether this process is a worker that its parent stops by ending it (a process pool's
+    worker or a budget child: a :mod:`multiprocessing` child, which dies with its parent,
+    :func:`dg16m_core.stopping.die_with_parent`): compiled code in it stops with it."""
+    return multiprocessing.parent_process() is not None
+
+
+def _compute_stoppable(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    params: DecompositionParameters,
+    label: str,
+    preprocess_mode: str,
+) -> tuple[ConvexPart, ...]:
+    """:func:`_compute` where Ctrl-C and SIGTERM stop it within a second: in a spawned child
+    process (compiled CoACD does not see signals in its own process; about 1 s to start),
+    except in a worker that its parent stops (:func:`_is_a_worker`), where it runs here. The
+    parts are the same either way (CoACD is deterministic for a seed; they come back pickled,
+    bit for bit). SIGTERM raises ``KeyboardInterrupt`` meanwhile, as Ctrl-C does, unless this
+    process already handles SIGTERM.
+
+    Raises:
+        MeshError: as :func:`_compute`, or the child crashed (the signal, the CPU seconds used
+            and :data:`CRASH_ADVICE`).
+        KeyboardInterrupt: Ctrl-C or SIGTERM (the child is stopped).
+    """
+    if _is_a_worker():
+        return _compute(vertices, faces, params, label, preprocess_mode)
+    from dg16m_core.budget import StageCrashError, run_with_budget
+    from dg16m_core.stopping import sigterm_interrupts
+
+    own_sigterm = signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+    try:
+        with sigterm_interrupts() if own_sigterm else nullcontext():
+            done = run_with_budget(
+                _compute_in_child, (vertices, faces, params, label, preprocess_mode), {}
+            )
+    except StageCrashError as exc:
+        raise MeshError(
+            f"{label}: the convex decomposition (CoACD) crashed ({exc}); {CRASH_ADVICE}"
+        ) from None
+    return done.value
+
+
 def _read_cache(
     path: Path, digest: str, params: DecompositionParameters, version: str
 ) -> tuple[ConvexPart, ...] | None:
@@ -395,6 +463,7 @@ def convex_decomposition(
     use_cache: bool = True,
     name: str | None = None,
     stats: dict[str, Any] | None = None,
+    stoppable: bool = False,
 ) -> tuple[ConvexPart, ...]:
     """Convex parts of ``mesh`` by CoACD, read from or written to the on-disk cache.
 
@@ -407,6 +476,10 @@ def convex_decomposition(
         stats: when given, receives ``"cache_hit"`` (bool), ``"cache_path"`` (Path or None),
             ``"preprocess"`` (the ``preprocess_mode`` CoACD ran with, or would have on a cache
             hit: "on" or "off") and ``"seconds"`` (float, wall time of this call).
+        stoppable: a command's call: when CoACD runs (not on a cache hit), Ctrl-C and SIGTERM
+            stop it within a second and a crash of CoACD is a MeshError, not the end of the
+            process: it runs in a child process (in a pool worker, which its parent ends, it
+            runs here). Same parts either way.
 
     Returns:
         One ``ConvexPart(kind="mesh", pose=identity, vertices=(V, 3) hull vertices)`` per hull,
@@ -414,8 +487,9 @@ def convex_decomposition(
 
     Raises:
         MeshError: ``mesh`` is not a Trimesh, is empty or has non-finite vertices, or CoACD left
-            no non-degenerate hull.
+            no non-degenerate hull, or (``stoppable``) crashed.
         ImportError: coacd is not installed.
+        KeyboardInterrupt: (``stoppable``) Ctrl-C or SIGTERM stopped CoACD.
     """
     start = time.perf_counter()
     params = DecompositionParameters() if params is None else params
@@ -435,7 +509,8 @@ def convex_decomposition(
     hit = parts is not None
     mode = params.preprocess_mode(mesh)
     if parts is None:
-        parts = _compute(vertices, faces, params, label, mode)
+        compute = _compute_stoppable if stoppable else _compute
+        parts = compute(vertices, faces, params, label, mode)
         if path is not None:
             payload = {
                 "format": CACHE_FORMAT,

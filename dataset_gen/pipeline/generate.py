@@ -210,6 +210,7 @@ def generate_object(
     *,
     object_file: str,
     times: StageTimes | None = None,
+    stoppable: bool = False,
 ) -> DualGraspSet:
     """Run sampling, pairing, force closure and selection for one object.
 
@@ -218,6 +219,8 @@ def generate_object(
         params: generator parameters; the random stream is ``object_seed(params.seed, id)``.
         object_file: the string stored as ``object/file``.
         times: filled with the seconds spent per stage when given.
+        stoppable: a command's call: Ctrl-C and SIGTERM stop it within a second also while
+            CoACD decomposes the mesh (it then runs in a child process; same parts).
 
     Returns:
         The object's dual grasps (release schema) with extras: ``single_grasps`` (M, 4, 4),
@@ -229,7 +232,8 @@ def generate_object(
     times = times if times is not None else StageTimes()
     rng = np.random.default_rng(object_seed(params.seed, obj.object_id))
     with times.measure("decomposition"):
-        parts = collision_parts(obj) if params.clearance_geometry == "decomposition" else None
+        decomposed = params.clearance_geometry == "decomposition"
+        parts = collision_parts(obj, stoppable=stoppable) if decomposed else None
     with times.measure("sampling"):
         grasps = sample_antipodal_grasps(
             obj,
@@ -422,12 +426,13 @@ def _task(source: ObjectSource, out: str, params: GenerationParameters) -> dict[
     """Load, generate and write one object; returns its manifest entry.
 
     An object that cannot be loaded or yields no dual grasp is ``failed`` with its reason (no
-    file is written, and a rerun tries it again).
+    file is written, and a rerun tries it again). Ctrl-C and SIGTERM stop it within a second,
+    also inside CoACD (with one worker it runs in the command's process).
     """
     kind = source_kind(source)
     try:
         obj = source.load(params.mass)
-        data = generate_object(obj, params, object_file=source.object_file)
+        data = generate_object(obj, params, object_file=source.object_file, stoppable=True)
     except Dg16mError as exc:  # a broken mesh (or an unusable object) fails only its own entry
         return {"status": "failed", "files": {}, "error": str(exc), "source": kind}
     return write_object(source, obj, data, out, params)

@@ -295,7 +295,7 @@ def _grasp_object(args: argparse.Namespace, object_scale: float):
         file=sys.stderr,
         flush=True,
     )
-    return obj, object_parts(obj, params=params)
+    return obj, object_parts(obj, params=params, stoppable=True)  # Ctrl-C stops CoACD
 
 
 def _write(replay, args: argparse.Namespace, title: str) -> None:

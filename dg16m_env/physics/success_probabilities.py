@@ -144,7 +144,8 @@ def evaluate_object(
     ``(spec.seed, object id)``) with ``simulator`` (default C MuJoCo)."""
     poses = check_dual_grasps(job.poses)
     obj = job.source.load(job.mass)
-    parts = job.parts if job.parts is not None else object_parts(obj)
+    # stoppable: Ctrl-C and SIGTERM stop CoACD too when one worker runs it in the command's process
+    parts = job.parts if job.parts is not None else object_parts(obj, stoppable=True)
     scene = compile_scene(obj, params=scene_params, parts=parts)
     return success_probability(scene, poses, spec=spec, protocol=protocol, simulator=simulator)
 
