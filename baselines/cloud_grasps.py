@@ -282,7 +282,8 @@ def sample_cloud_grasps(
     )
 
 
-def _concatenate(a: SingleArmGrasps, b: SingleArmGrasps) -> SingleArmGrasps:
+def concatenate_grasps(a: SingleArmGrasps, b: SingleArmGrasps) -> SingleArmGrasps:
+    """The grasps of ``a`` then those of ``b`` (same gripper; counts merged)."""
     return SingleArmGrasps(
         poses=np.concatenate([a.poses, b.poses]),
         contact_points=np.concatenate([a.contact_points, b.contact_points]),
@@ -346,7 +347,7 @@ def cloud_dual_candidates(
     grasps = sample_cloud_grasps(cloud, config, rng, counts, views)
     if config.enclosing:
         enclosing = sample_enclosing_grasps(cloud, config, rng, counts, views)
-        grasps = _concatenate(grasps, enclosing)
+        grasps = concatenate_grasps(grasps, enclosing)
     if grasps.n >= 2:
         cands = candidate_pairs(grasps, min_center_distance=config.min_center_distance)
         counts.update({k: int(v) for k, v in cands.counts.items() if k != "remaining"})
@@ -358,6 +359,14 @@ def cloud_dual_candidates(
     if len(pairs) > config.max_pairs:
         pairs = pairs[np.sort(rng.choice(len(pairs), size=config.max_pairs, replace=False))]
     counts["kept"] = len(pairs)
+    return paired_candidates(grasps, pairs, counts)
+
+
+def paired_candidates(
+    grasps: SingleArmGrasps, pairs: np.ndarray, counts: dict[str, int]
+) -> DualCandidates:
+    """The :class:`DualCandidates` of ``pairs`` (N, 2) of ``grasps`` (their poses and contacts;
+    N may be 0), with ``counts``."""
     if len(pairs):
         points, normals = dual_contacts(grasps, pairs)
         poses = dual_poses(grasps, pairs)
@@ -380,6 +389,7 @@ __all__ = [
     "check_cloud",
     "cloud_contact_pairs",
     "cloud_dual_candidates",
+    "concatenate_grasps",
     "enclose",
     "enclosing_poses",
     "hand_hits_cloud",
@@ -388,6 +398,7 @@ __all__ = [
     "hand_volume_in_object",
     "hand_volume_points",
     "hands_in_seen_free_space",
+    "paired_candidates",
     "sample_cloud_grasps",
     "sample_enclosing_grasps",
 ]

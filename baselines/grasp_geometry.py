@@ -51,6 +51,7 @@ CHECKPOINT_VERSION = 1
 MODEL_CLASSES: dict[str, str] = {
     "dual_pointnet_gpd": "baselines.dual_pointnet_gpd:DualPointNetGPD",
     "cgdf_classifier": "baselines.cgdf_classifier:CGDFClassifier",
+    "anchored_grasp_flow": "baselines.dual_grasp_flow:AnchoredGraspFlow",
 }
 """Model name -> ``module:class`` (imported on demand by :func:`load_checkpoint`)."""
 

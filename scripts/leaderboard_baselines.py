@@ -14,6 +14,11 @@ the script again is harmless.
 
     python scripts/leaderboard_baselines.py --db runs/leaderboard/board.db --strategies "" \
         --predictors baselines.cloud_predictor:cgdf_predictor,baselines.cloud_predictor:cgdf_robust_predictor
+
+The cloud track (predictors see only the benchmark's depth cameras, ranked apart):
+
+    python scripts/leaderboard_baselines.py --db runs/leaderboard/board.db --strategies "" \
+        --track cloud --predictors baselines.flow_predictor:flow_predictor
 """
 
 from __future__ import annotations
@@ -58,6 +63,12 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         "--predictors",
         default="",
         help="module:callable predictors to submit too, comma-separated (default none)",
+    )
+    parser.add_argument(
+        "--track",
+        default="mesh",
+        choices=("mesh", "cloud"),
+        help="what the predictors see: the mesh (default) or only the benchmark's depth cameras",
     )
     parser.add_argument("--k", type=int, default=10, help="dual grasps per object (10)")
     parser.add_argument(
@@ -107,7 +118,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"wrote {len(paths)} reference submissions to {out} in {took:.0f} s")
     out.mkdir(parents=True, exist_ok=True)
     for target in [t.strip() for t in args.predictors.split(",") if t.strip()]:
-        name = target.rsplit(":", 1)[-1]
+        name = target.rsplit(":", 1)[-1] + ("" if args.track == "mesh" else f"-{args.track}")
         started = time.perf_counter()
         path, run = submission_from_predictor(
             PredictorSpec(target=target),
@@ -115,6 +126,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             benchmark=ref,
             seed=args.seed,  # the observations' point clouds
             max_grasps=args.k,
+            track=args.track,
             progress=not args.no_progress,
         )
         took = time.perf_counter() - started

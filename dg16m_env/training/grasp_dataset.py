@@ -338,6 +338,19 @@ class DualGraspDataset(_torch_dataset_base(False)):  # type: ignore[misc]
         row = item - int(self.offsets[index])
         return _sample(self._clouds, self.records[index], self._object_grasps(index), row, index)
 
+    def object_cloud(self, index: int) -> np.ndarray:
+        """(n_points, 3) float32 cloud of object ``index`` (of ``object_ids``), cached."""
+        return self._clouds.get(self.records[index])
+
+    def object_grasps(self, index: int) -> ObjectGrasps:
+        """The dual grasps and labels of object ``index`` (of ``object_ids``), cached.
+
+        Raises:
+            TrainingDataError: a file that cannot be read or holds another count than the
+                manifest's.
+        """
+        return self._object_grasps(index)
+
     def object_sampler(self, seed: int = 0, epoch: int = 0) -> list[int]:
         """All indices, objects in a seeded order and each object's grasps shuffled within it
         (pass as ``sampler=`` to a DataLoader: each object file is read once per epoch)."""
