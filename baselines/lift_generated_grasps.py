@@ -3,8 +3,10 @@ lifts it, beside the same expert with the benchmark's grasp (issue 59).
 
 Reads top to bottom (CleanRL style): one dataclass of arguments, then the run.
 
-For each held-out object of ``dg16m_env/DualGraspLift-v2`` (every third object of the benchmark,
-the split the Lift baselines are scored on) and each of ``episodes_per_object`` seeds:
+For each of ``episodes`` seeds, the env draws a held-out object of
+``dg16m_env/DualGraspLift-v2`` (every third object of the benchmark, the split the Lift baselines
+are scored on; objects without a benchmark grasp that stays above the table are never drawn),
+then the same seed and object run twice:
 
 1. **benchmark grasp**: the env draws its target from the benchmark's dual grasps (the
    default), and :class:`dg16m_env.envs.lift.experts.FeedbackLiftExpert` grasps and lifts;
@@ -13,8 +15,8 @@ the split the Lift baselines are scored on) and each of ``episodes_per_object`` 
    to :data:`baselines.flow_predictor.flow_predictor`; its ranked dual grasps are tried as the
    episode's target in rank order until one has both hands above the table in the episode's
    resting pose (the env's ``target_above_table``: the robot sees the table; at most ``k``
-   tries, else the best-ranked one), and the same expert lifts it. An object without any
-   generated grasp counts as a failed episode.
+   tries, else the last one), and the same expert lifts it. An object without any generated
+   grasp counts as a failed episode.
 
 The same seeds give both settings the same object and resting pose. Success rates with Wilson
 95% intervals go to ``out`` (JSON) and stdout.
@@ -41,10 +43,8 @@ from dg16m_core.progress import progress_bar
 class Args:
     benchmark: str = "procedural"
     """the benchmark whose held-out objects are lifted: procedural or real"""
-    episodes_per_object: int = 2
-    """seeds per held-out object (each a resting pose and, for the benchmark grasp, a target)"""
-    objects: int = 0
-    """the first N held-out objects only (0: all)"""
+    episodes: int = 200
+    """episodes (seeds) per setting"""
     k: int = 10
     """generated dual grasps tried at most per episode (the first above the table is used)"""
     seed: int = 0
@@ -87,34 +87,34 @@ def main(args: Args | None = None) -> dict[str, Any]:
 
     ref = load_benchmark_ref(None if args.benchmark == "procedural" else args.benchmark)
     held_out = split_objects(list(ref.object_ids))[1]
-    if args.objects:
-        held_out = held_out[: args.objects]
     objects = {o.object_id: o for o in ref.benchmark.objects}
     env = gym.make("dg16m_env/DualGraspLift-v2", benchmark=ref, object_ids=held_out)
     expert = FeedbackLiftExpert()
-    outcome = {"benchmark_grasp": [], "generated_grasp": []}
+    outcome: dict[str, list[bool]] = {"benchmark_grasp": [], "generated_grasp": []}
+    targets: dict[str, np.ndarray] = {}
     tries, started = [], time.monotonic()
-    for i, object_id in enumerate(progress_bar(held_out, desc="objects", unit="object")):
-        targets = generated_targets(objects[object_id].load(None), args.k)
-        for e in range(args.episodes_per_object):
-            seed = args.seed + i * args.episodes_per_object + e
-            ok, _ = run_episode(env, expert, seed, {"object_id": object_id})
-            outcome["benchmark_grasp"].append(ok)
-            if len(targets) == 0:
-                outcome["generated_grasp"].append(False)
-                continue
-            for t, target in enumerate(targets):
-                ok, info = run_episode(
-                    env, expert, seed, {"object_id": object_id, "target_grasp": target}
-                )
-                if info.get("target_above_table", True) or t == len(targets) - 1:
-                    break
-            tries.append(t + 1)
-            outcome["generated_grasp"].append(ok)
+    for seed in progress_bar(range(args.seed, args.seed + args.episodes), desc="episodes"):
+        _, info = env.reset(seed=seed)
+        object_id = str(info["object_id"])
+        ok, _ = run_episode(env, expert, seed, {"object_id": object_id})
+        outcome["benchmark_grasp"].append(ok)
+        if object_id not in targets:
+            targets[object_id] = generated_targets(objects[object_id].load(None), args.k)
+        if len(targets[object_id]) == 0:
+            outcome["generated_grasp"].append(False)
+            continue
+        for t, target in enumerate(targets[object_id]):
+            ok, info = run_episode(
+                env, expert, seed, {"object_id": object_id, "target_grasp": target}
+            )
+            if info.get("target_above_table", True) or t == len(targets[object_id]) - 1:
+                break
+        tries.append(t + 1)
+        outcome["generated_grasp"].append(ok)
     env.close()
     results: dict[str, Any] = {
         "benchmark": args.benchmark,
-        "objects": len(held_out),
+        "objects": len(targets),
         "episodes": len(outcome["benchmark_grasp"]),
         "seconds": round(time.monotonic() - started, 1),
         "mean_tries": float(np.mean(tries)) if tries else None,

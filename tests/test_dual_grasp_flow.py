@@ -275,7 +275,7 @@ def test_the_ablations_share_the_samplers_draws_and_refuse_bad_settings(procedur
 def test_lift_with_generated_grasps_runs_both_settings(tmp_path: Path) -> None:
     from baselines.lift_generated_grasps import Args, main
 
-    results = main(Args(objects=1, episodes_per_object=1, out=tmp_path / "lift.json"))
+    results = main(Args(episodes=1, out=tmp_path / "lift.json"))
     assert results["episodes"] == 1
     for setting in ("benchmark_grasp", "generated_grasp"):
         assert results[setting]["episodes"] == 1

@@ -213,7 +213,8 @@ def test_worker_killed_mid_scoring_is_replaced_and_scored_once(service: Service)
         assert board.results(sid) == {}
         with client.stream("GET", "/api/queue") as response:
             assert response.status_code == 200
-        rescuer = service.worker("--lease", "2", "--idle-exit", "5")
+        # a long lease: a loaded machine must not make the rescuer lose the job too
+        rescuer = service.worker("--lease", "10", "--idle-exit", "5")
         _wait_all_scored(service, [sid], SCORE_TIMEOUT_S)
         rescuer.wait(60)
         view = client.get(f"/api/submissions/{sid}").json()
