@@ -63,7 +63,14 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from baselines.grasp_geometry import MLP, config_from_dict, config_to_dict, require
+from baselines.grasp_geometry import (
+    MLP,
+    config_from_dict,
+    config_to_dict,
+    gather_points,
+    require,
+    squared_distances,
+)
 from dataset_gen.grasps.gripper import get_gripper
 
 HAND_SIZE = 9
@@ -237,8 +244,6 @@ class AnchoredGraspFlow(nn.Module):
     def conditions(self, points: Tensor, anchors: Tensor) -> tuple[Tensor, Tensor]:
         """``(codes (B, G, C), anchor points (B, G, 3))`` of anchors (B, G) (indices into the
         clouds ``points`` (B, P, 3), m)."""
-        from baselines.grasp_geometry import gather_points, squared_distances
-
         config = self.config
         centroid = points.mean(dim=1)
         subset = points[:, : config.global_points]

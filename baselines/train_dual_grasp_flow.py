@@ -306,13 +306,15 @@ def run_steps(
     stage: str,
     total: int,
     step: int,
-    take_step: Callable[[int], float],
+    loss_of: Callable[[int], Any],
+    optimizer: Any,
+    scheduler: Any,
     measure: tuple[str, Callable[[], float]],
     snapshot: Callable[[int], dict[str, Any]],
     history: list[dict[str, Any]],
 ) -> int:
-    """Steps ``step`` to ``total`` of one stage: ``take_step(step)`` returns the step's loss;
-    every ``eval_every`` steps (and at the end) ``history`` gets the running loss and the
+    """Steps ``step`` to ``total`` of one stage: ``loss_of(step)`` is the step's loss (a
+    tensor), which ``optimizer`` minimises (then ``scheduler`` steps, unless None); every ``eval_every`` steps (and at the end) ``history`` gets the running loss and the
     validation measure ``measure = (name, function)``; the state is saved every
     ``checkpoint_every_s`` and on Ctrl-C / SIGTERM (then re-raised). Returns ``total``."""
     name, function = measure
@@ -320,7 +322,13 @@ def run_steps(
     saved, running = time.monotonic(), float("nan")
     try:
         while step < total:
-            loss = take_step(step)
+            tensor = loss_of(step)
+            optimizer.zero_grad()
+            tensor.backward()
+            optimizer.step()
+            if scheduler is not None:
+                scheduler.step()
+            loss = tensor.item()
             step += 1
             running = loss if np.isnan(running) else 0.98 * running + 0.02 * loss
             bar.update(1)
@@ -421,22 +429,18 @@ def train_generator(args: Args, state: dict[str, Any]) -> dict[str, Any]:
             "scheduler": scheduler.state_dict(),
         }
 
-    def take_step(step: int) -> float:
-        loss = _generator_loss(
-            model, generator_batch(args, train, t_data, step, "train"), _noise(args, "noise", step)
-        )
-        optimizer.zero_grad()
-        loss.backward()
-        optimizer.step()
-        scheduler.step()
-        return loss.item()
+    def loss_of(step: int) -> Any:
+        batch = generator_batch(args, train, t_data, step, "train")
+        return _generator_loss(model, batch, _noise(args, "noise", step))
 
     step = run_steps(
         args,
         "generator",
         args.generator_steps,
         step,
-        take_step,
+        loss_of,
+        optimizer,
+        scheduler,
         ("val_loss", validation_loss),
         snapshot,
         history,
@@ -605,23 +609,21 @@ def train_ranker(args: Args, state: dict[str, Any]) -> dict[str, Any]:
             "ranker_optimizer": optimizer.state_dict(),
         }
 
-    def take_step(step: int) -> float:
+    def loss_of(step: int) -> Any:
         clouds, poses, labels = ranker_batch(args, train, step)
         logits = model.forward_batch(torch.from_numpy(clouds), torch.from_numpy(poses))
-        loss = torch.nn.functional.binary_cross_entropy_with_logits(
+        return torch.nn.functional.binary_cross_entropy_with_logits(
             logits, torch.from_numpy(labels.astype(np.float32))
         )
-        optimizer.zero_grad()
-        loss.backward()
-        optimizer.step()
-        return loss.item()
 
     step = run_steps(
         args,
         "ranker",
         args.ranker_steps,
         step,
-        take_step,
+        loss_of,
+        optimizer,
+        None,
         ("val_auc", validation_auc),
         snapshot,
         history,

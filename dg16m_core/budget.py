@@ -270,7 +270,7 @@ def _child(
         conn.close()
 
 
-def _cpu_seconds(pid: int) -> float | None:
+def process_cpu_seconds(pid: int) -> float | None:
     """User + system CPU seconds of a live process (Linux ``/proc``), or None elsewhere."""
     try:
         fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
@@ -414,7 +414,7 @@ class _Watch:
 
     def cpu_now(self) -> float | None:
         pid = self.process.pid
-        cpu = _cpu_seconds(pid) if pid is not None else None
+        cpu = process_cpu_seconds(pid) if pid is not None else None
         if cpu is not None:
             self.last_cpu = cpu
         return cpu

@@ -29,6 +29,7 @@ import numpy as np
 
 from baselines.cloud_predictor import PAPER_FORCE_CLOSURE
 from baselines.flow_predictor import FlowPredictor
+from dataset_gen.grasps.gripper import get_gripper
 from dataset_gen.objects.grasp_object import load_object
 from dg16m_core.atomic import write_json_atomic
 from dg16m_core.progress import progress_bar
@@ -42,8 +43,8 @@ COVER_DISTANCE = 0.03
 COVER_ANGLE = np.radians(15.0)
 """Largest rotation between hands for a dataset hand to count as covered (rad)."""
 
-CONTACT_DEPTH = 0.1034
-"""The Panda's grasp centre along its approach (m), ``dataset_gen.grasps.gripper``."""
+CONTACT_DEPTH = get_gripper("panda").contact_depth
+"""The Panda's grasp centre along its approach (m)."""
 
 
 def hand_match(a: np.ndarray, b: np.ndarray) -> np.ndarray:

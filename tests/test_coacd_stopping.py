@@ -23,6 +23,7 @@ from test_build_stopping import STOP_WITHIN_S, _alive, _descendants, thin_vase
 
 from dataset_gen.io import read_manifest
 from dataset_gen.objects import decomposition as dec
+from dg16m_core.budget import process_cpu_seconds
 from dg16m_core.cli import EXIT_INTERRUPTED
 from dg16m_core.cli import main as cli_main
 
@@ -153,7 +154,7 @@ def _stop_inside_coacd(command: list[str], signum: int, cache: Path) -> tuple[in
             assert process.poll() is None, process.communicate()[0]
             assert time.monotonic() - started < 120, "expected CoACD's child within 2 minutes"
             below = _descendants(process.pid)
-            if any((_cpu_seconds(pid) or 0.0) >= 2.0 for pid in below):
+            if any((process_cpu_seconds(pid) or 0.0) >= 2.0 for pid in below):
                 break
             time.sleep(0.2)
         process.send_signal(signum)
@@ -169,14 +170,6 @@ def _stop_inside_coacd(command: list[str], signum: int, cache: Path) -> tuple[in
         time.sleep(0.1)
     assert not [pid for pid in below if _alive(pid)], "a child outlived the command"
     return process.returncode, output, took
-
-
-def _cpu_seconds(pid: int) -> float | None:
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return None
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc (Linux)")
