@@ -6,10 +6,11 @@ Reads top to bottom (CleanRL style): one dataclass of arguments, then the run.
 1. Split the benchmark's objects: every third object held out for evaluation
    (:func:`dg16m_env.envs.objects.split_objects`).
 2. Read the demonstrations: a Minari dataset written by ``dg16m demos collect`` (episodes of
-   :class:`~dg16m_env.envs.lift.experts.FeedbackLiftExpert` on the training objects);
-   the successful episodes' (state, action) pairs are the first training set. The dataset's
-   env id (``dg16m demos collect --env-id``) is the env of the DAgger rollouts and the
-   evaluation.
+   :class:`~dg16m_env.envs.lift.experts.FeedbackLiftExpert`, or with ``--expert recovering``
+   of :class:`~dg16m_env.envs.lift.recovering_expert.RecoveringLiftExpert`, on the training
+   objects); the successful episodes' (state, action) pairs are the first training set. The
+   dataset's env id (``dg16m demos collect --env-id``) is the env of the DAgger rollouts and
+   the evaluation, and its expert labels the DAgger states and is the evaluation's teacher.
 3. Behaviour cloning: an MLP on each hand's goal-frame features
    (:mod:`baselines.lift_bc_policy`), mean squared error on the motion (through tanh) plus a
    binary cross-entropy on the finger command, Adam with a one-cycle learning rate.
@@ -62,6 +63,7 @@ from baselines.sb3_common import (
     write_run,
 )
 from dg16m_core.atomic import atomic_path
+from dg16m_env.envs.lift.expert_registry import make_lift_expert
 from dg16m_env.envs.lift.experts import FeedbackLiftExpert
 from dg16m_env.envs.lift.observations import STATE_SIZE
 from dg16m_env.evaluators import EvaluationResult
@@ -106,6 +108,15 @@ class Args:
     """torch threads"""
     out: Path = Path("runs/bc_lift")
     """output folder: policy, learning curve, results"""
+
+
+def demonstrations_expert(source: str) -> str:
+    """The class name of the expert that collected the Minari dataset ``source``
+    (``FeedbackLiftExpert`` for datasets that do not say)."""
+    from dg16m_env.envs.lift.demo_files import demos_metadata, open_lift_demos
+
+    expert = demos_metadata(open_lift_demos(source)).get("expert") or {}
+    return str(expert.get("name", "FeedbackLiftExpert"))
 
 
 def load_demonstrations(source: str) -> tuple[np.ndarray, np.ndarray, int, int, str]:
@@ -250,7 +261,8 @@ def main() -> None:
 
     torch.set_num_threads(args.threads)
     train_ids, test_ids = output_and_split(args.out)
-    expert = FeedbackLiftExpert()
+    # DAgger labels and the evaluation's teacher: the expert that collected the demonstrations
+    expert = make_lift_expert(demonstrations_expert(args.demos))
     rng = np.random.default_rng(args.seed)
     phases = None if args.dagger_phases == "all" else set(args.dagger_phases.split(","))
     if phases is not None and not phases <= set(PHASES):

@@ -195,6 +195,10 @@ def test_the_worker_count_does_not_change_the_data(tmp_path: Path) -> None:
         ({"env_kwargs": {"obs_mode": "state"}}, "env_kwargs: expected none of"),
         ({"workers": 0}, "workers: expected an integer >= 1"),
         ({"env_id": "dg16m_env/DualGraspLift-v0"}, "env_id: expected one of"),
+        (
+            {"expert": "oracle"},
+            "expert: expected one of \\('feedback', 'recovering'\\), found 'oracle'",
+        ),
     ],
 )
 def test_bad_arguments_are_refused(tmp_path: Path, kwargs: dict, message: str) -> None:
@@ -228,6 +232,31 @@ def test_v1_demonstrations_are_collected_and_replayed_on_v1(tmp_path: Path) -> N
     assert replay_lift_demo(dataset, 1).identical
     assert ENV_ID == ENV_IDS[1] == "dg16m_env/DualGraspLift-v2"
     assert ENV_IDS[-1] == "dg16m_env/DualGraspLift-v3"
+
+
+def test_recovering_expert_demonstrations_record_their_expert_and_replay(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--expert recovering`` collects with RecoveringLiftExpert (issue 57): the dataset names
+    it, its episodes replay identically, and bc_lift labels DAgger states with it."""
+    from baselines.bc_lift import demonstrations_expert
+    from dg16m_env.envs.lift.demo_files import DEMO_EXPERTS
+    from dg16m_env.envs.lift.expert_registry import LIFT_EXPERTS, make_lift_expert
+    from dg16m_env.envs.lift.recovering_expert import RecoveringLiftExpert
+
+    assert tuple(LIFT_EXPERTS) == DEMO_EXPERTS
+    out = tmp_path / "root"
+    args = ["--out", str(out), "--episode-steps", "30", "--no-progress", "--expert", "recovering"]
+    assert main(["demos", "collect", "--episodes", "2", *args]) == 0
+    capsys.readouterr()
+    dataset = open_lift_demos(out / DEFAULT_DATASET_ID)
+    assert demos_metadata(dataset)["expert"]["name"] == "RecoveringLiftExpert"
+    assert {row["expert"] for row in episode_metadata(dataset)} == {"RecoveringLiftExpert"}
+    assert replay_lift_demo(dataset, 1).identical
+    name = demonstrations_expert(str(out / DEFAULT_DATASET_ID))
+    assert isinstance(make_lift_expert(name), RecoveringLiftExpert)
+    with pytest.raises(ValueError, match=r"expected one of .* found 'Oracle'"):
+        make_lift_expert("Oracle")
 
 
 def test_command_line(

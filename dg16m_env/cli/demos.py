@@ -21,6 +21,7 @@ from dg16m_core.cli import add_command
 from dg16m_core.errors import Dg16mError
 from dg16m_env.envs.lift.demo_files import (
     DEFAULT_DATASET_ID,
+    DEMO_EXPERTS,
     DEMO_OBS_MODES,
     ENV_ID,
     ENV_IDS,
@@ -189,6 +190,14 @@ def _collect_arguments(collect: argparse.ArgumentParser) -> None:
         metavar="T",
         help="the env's episode length (default: the env's, 200 steps = 10 s)",
     )
+    collect.add_argument(
+        "--expert",
+        choices=DEMO_EXPERTS,
+        default="feedback",
+        help="the expert: feedback (FeedbackLiftExpert, default) or recovering "
+        "(RecoveringLiftExpert: resumes from where the hands are, holds their relative pose "
+        "while lifting, regrasps)",
+    )
     collect.add_argument("--force", action="store_true", help="replace an existing dataset")
     add_progress_argument(collect)
     collect.set_defaults(handler=_collect)
@@ -215,6 +224,7 @@ def _collect(args: argparse.Namespace) -> int:
         workers=args.workers,
         obs_mode=args.obs_mode,
         env_kwargs=env_kwargs,
+        expert=args.expert,
         force=args.force,
         progress=not args.no_progress,
     )

@@ -12,7 +12,9 @@ reward terms, experts, demonstrations and vector env (:mod:`.vector`).
   targets, measures and observation; numpy for v0 and v1, the compiled :mod:`.kernels` for
   v2 and v3), :mod:`.measures` (hold, termination), :mod:`.reward`, :mod:`.spaces`,
   :mod:`.observations`, :mod:`.targets` (reset options), :mod:`.state` (save and restore).
-* Beside it: :mod:`.experts` (the scripted and the feedback expert), :mod:`.demos` (collecting
+* Beside it: :mod:`.experts` (the scripted and the feedback expert),
+  :mod:`.recovering_expert` (an expert that recovers from pushes), :mod:`.expert_registry`
+  (the experts by name), :mod:`.demos` (collecting
   demonstrations) and :mod:`.demo_files` (their Minari files: reading, replaying), and the
   vector env: :mod:`.vector` (``LiftVectorEnv``, ``gym.make_vec``'s default for v2 and v3: blocks of
   environments in this process and worker processes) on :mod:`.vector_block` (one block, its

@@ -85,6 +85,10 @@ DEFAULT_DATASET_ID = "dg16m/lift-expert-v0"
 DEMO_OBS_MODES = ("state", "state_dict")
 """Observation modes the collector takes (``"pointcloud"`` is not stored)."""
 
+DEMO_EXPERTS = ("feedback", "recovering")
+"""The experts the collector runs (the names of
+:data:`dg16m_env.envs.lift.expert_registry.LIFT_EXPERTS`; the dataset records the class)."""
+
 OBJECT_SETS = ("train", "held-out", "all")
 """Named object selections (:func:`select_objects`); else a list of object ids."""
 

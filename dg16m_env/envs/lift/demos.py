@@ -1,4 +1,5 @@
-"""Collect demonstrations of :class:`~dg16m_env.envs.lift.experts.FeedbackLiftExpert` on
+"""Collect demonstrations of a Lift expert (:class:`~dg16m_env.envs.lift.experts.FeedbackLiftExpert`
+by default, or :class:`~dg16m_env.envs.lift.recovering_expert.RecoveringLiftExpert`) on
 ``dg16m_env/DualGraspLift-v2`` (default), ``-v3`` or ``-v1`` into a Farama Minari dataset
 (:func:`collect_lift_demos`, ``dg16m demos collect``): the episodes run in worker processes, are
 written in index order and the dataset is renamed into place. What the files hold, and how
@@ -30,6 +31,7 @@ from dg16m_core.progress import progress_bar
 from dg16m_env.envs.lift.demo_files import (
     DATASET_ID,
     DEFAULT_DATASET_ID,
+    DEMO_EXPERTS,
     DEMO_OBS_MODES,
     ENV_ID,
     ENV_IDS,
@@ -139,9 +141,12 @@ def _make_env(config: Mapping[str, Any]) -> Any:
 
 
 def _make_expert(config: Mapping[str, Any]) -> Any:
-    from dg16m_env.envs.lift.experts import FeedbackLiftExpert
+    from dg16m_env.envs.lift.expert_registry import make_lift_expert
 
-    return FeedbackLiftExpert(lift_height=float(config["kwargs"].get("lift_height", 0.10)))
+    return make_lift_expert(
+        config.get("expert", "feedback"),
+        lift_height=float(config["kwargs"].get("lift_height", 0.10)),
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -349,11 +354,13 @@ def collect_lift_demos(
     workers: int = 1,
     obs_mode: str = "state",
     env_kwargs: Mapping[str, Any] | None = None,
+    expert: str = "feedback",
     force: bool = False,
     progress: bool = True,
 ) -> CollectReport:
-    """Run :class:`~dg16m_env.envs.lift.experts.FeedbackLiftExpert` for ``episodes``
-    episodes and write them as the Minari dataset ``dataset_id`` under ``root``.
+    """Run a Lift expert (default :class:`~dg16m_env.envs.lift.experts.FeedbackLiftExpert`)
+    for ``episodes`` episodes and write them as the Minari dataset ``dataset_id`` under
+    ``root``.
 
     Args:
         root: Minari root folder (default :func:`datasets_root`: ``$MINARI_DATASETS_PATH`` or
@@ -370,6 +377,8 @@ def collect_lift_demos(
         env_kwargs: more ``gym.make`` keyword arguments (JSON values, stored), e.g.
             ``{"episode_steps": 50}`` (then also the ``TimeLimit``), ``{"reward_mode":
             "sparse"}``; ``lift_height`` is passed to the expert as well.
+        expert: ``"feedback"`` (default) or ``"recovering"``
+            (:data:`~dg16m_env.envs.lift.expert_registry.LIFT_EXPERTS`); the dataset records its class.
         force: replace an existing dataset of that id.
         progress: a progress bar on stderr (:func:`dg16m_core.progress.progress_bar`).
 
@@ -395,6 +404,9 @@ def collect_lift_demos(
     ref = load_benchmark_ref(bench, (env_kwargs or {}).get("mesh_root"), lazy=True)
     object_ids = select_objects(ref.object_ids, objects)
     config = _env_config(env_id, bench, object_ids, obs_mode, env_kwargs)
+    if expert not in DEMO_EXPERTS:
+        raise LiftDemosError(f"expert: expected one of {DEMO_EXPERTS}, found {expert!r}")
+    config["expert"] = expert
     try:  # checks the kwargs before any worker starts; gives the spaces
         env = _make_env(config)
     except Dg16mError:

@@ -7,6 +7,10 @@ layout and the action scaling):
 * :class:`FeedbackLiftExpert`, for ``dg16m_env/DualGraspLift-v1`` and ``-v2``: decides its
   action from the current observation alone (it replans every step and keeps no memory), so
   observation -> action is a function, which imitation learning and DAgger need.
+* :class:`~dg16m_env.envs.lift.recovering_expert.RecoveringLiftExpert` (its own module): the
+  feedback expert's phases, followed so that it recovers from pushes.
+
+:func:`dg16m_env.envs.lift.expert_registry.make_lift_expert` makes the feedback experts by name.
 
 Measured (2026-12-05, ``gym.make("dg16m_env/DualGraspLift-v1")``, procedural benchmark with its
 target grasp, seeds 0-119): :class:`FeedbackLiftExpert` succeeds in 92/120 = 0.77 (Wilson 95 %
@@ -450,6 +454,33 @@ class FeedbackLiftExpert:
         lowest = float((rotation[2] @ self._below_centre.T).min())
         return TABLE_MARGIN + 1e-3 - lowest
 
+    def _path(self, goal: np.ndarray, goal_rot: np.ndarray) -> list[np.ndarray]:
+        """The approach path far point -> pre-grasp -> grasp centre (3 points, world, m), the
+        first two raised so that the hand at ``goal_rot`` stays above the table."""
+        axis = goal_rot[:, 1]
+        floor = self._floor(goal_rot)
+        path = [goal - back * axis for back in (self.FAR_DISTANCE, self.PREGRASP_DISTANCE, 0.0)]
+        for point in path[:2]:
+            point[2] = max(point[2], floor)
+        return path
+
+    def _over_the_object(
+        self,
+        centre: np.ndarray,
+        rotation: np.ndarray,
+        start: np.ndarray,
+        goal_rot: np.ndarray,
+        corners: np.ndarray,
+    ) -> np.ndarray:
+        """Motion of a hand far from its path: up to the safe height (the box top + the hand's
+        reach + ``CLEARANCE``, or the far point ``start`` if higher), then across at that height
+        to above the far point, turning to ``goal_rot`` on the way."""
+        safe = float(corners[:, 2].max()) + HAND_REACH + self.CLEARANCE
+        high = max(safe, float(start[2]))
+        if centre[2] < high - self.HEIGHT_TOLERANCE:
+            return _motion(centre, rotation, np.array([centre[0], centre[1], high]), None)
+        return _motion(centre, rotation, np.array([start[0], start[1], centre[2]]), goal_rot)
+
     def _approach(
         self,
         centre: np.ndarray,
@@ -459,11 +490,7 @@ class FeedbackLiftExpert:
         corners: np.ndarray,
     ) -> np.ndarray:
         """Motion (6 action components) of one hand on its way to its goal (class docstring)."""
-        axis = goal_rot[:, 1]
-        floor = self._floor(goal_rot)
-        path = [goal - back * axis for back in (self.FAR_DISTANCE, self.PREGRASP_DISTANCE, 0.0)]
-        for point in path[:2]:
-            point[2] = max(point[2], floor)
+        path = self._path(goal, goal_rot)
         along, lateral, length = _along(path, centre)
         angle = float(np.linalg.norm(rotation_vector(goal_rot @ rotation.T)))
         if lateral <= self.CORRIDOR_RADIUS and angle <= self.CORRIDOR_ANGLE:
@@ -471,12 +498,8 @@ class FeedbackLiftExpert:
             step = self.IN_STEP * min(1.0, left / self.SLOW_DISTANCE + 0.25)
             return _motion(centre, rotation, _point(path, along + step), goal_rot)
         start = path[0]
-        safe = float(corners[:, 2].max()) + HAND_REACH + self.CLEARANCE
-        high = max(safe, float(start[2]))
         if float(np.linalg.norm(centre[:2] - start[:2])) <= self.COLUMN_RADIUS:
             if angle > self.ANGLE_TOLERANCE:  # turn in place first
                 return _motion(centre, rotation, centre, goal_rot)
             return _motion(centre, rotation, start, goal_rot)
-        if centre[2] < high - self.HEIGHT_TOLERANCE:
-            return _motion(centre, rotation, np.array([centre[0], centre[1], high]), None)
-        return _motion(centre, rotation, np.array([start[0], start[1], centre[2]]), goal_rot)
+        return self._over_the_object(centre, rotation, start, goal_rot, corners)
