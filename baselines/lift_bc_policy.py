@@ -73,7 +73,7 @@ def check_states(states: Any) -> np.ndarray:
     return s
 
 
-def _in_frame(to_goal: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+def in_frame(to_goal: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     """(N, 2, 3) world vectors -> the goal frames (``to_goal`` (N, 2, 3, 3) = R^T)."""
     return np.einsum("nkij,nkj->nki", to_goal, vectors)
 
@@ -83,12 +83,6 @@ def hand_features(states: Any) -> tuple[np.ndarray, np.ndarray]:
     3)`` world-to-goal rotations (for :func:`goal_frame_actions` / :func:`world_actions`)."""
     s = check_states(states)
     n = len(s)
-    goal_rot, goals, centres, rotations = goal_frames(s)
-    to_goal = np.swapaxes(goal_rot, -1, -2)
-    own_error = _in_frame(to_goal, centres - goals)
-    actual_error = _in_frame(to_goal, s[:, STATE_SLICES["centre_errors"]].reshape(n, 2, 3))
-    turn = _in_frame(to_goal, rotation_vector(goal_rot @ np.swapaxes(rotations, -1, -2)))
-    up = to_goal[:, :, :, 2]
     object_rot = rotation_from_6d(s[:, STATE_SLICES["object_rotation"]])[0]
     corners = (
         s[:, None, STATE_SLICES["object_box_centre"]]
@@ -98,6 +92,42 @@ def hand_features(states: Any) -> tuple[np.ndarray, np.ndarray]:
         np.einsum("nij,npj->npi", object_rot, corners)[:, :, 2]
         + s[:, None, STATE_SLICES["object_position"]][:, :, 2]
     ).max(axis=1)
+    own, other, to_goal, _ = hand_parts(s, top)
+    task = np.stack(
+        [
+            s[:, STATE_SLICES["lift"]][:, 0],
+            s[:, STATE_SLICES["hold"]][:, 0],
+            s[:, STATE_SLICES["elapsed"]][:, 0],
+            s[:, STATE_SLICES["object_linear_velocity"]][:, 2],
+        ],
+        axis=-1,
+    )
+    which = np.broadcast_to(np.eye(2), (n, 2, 2))
+    features = np.concatenate([own, other, np.repeat(task[:, None], 2, axis=1), which], axis=-1)
+    assert features.shape[-1] == FEATURES
+    return features.astype(np.float32), to_goal
+
+
+def hand_parts(
+    s: np.ndarray, top: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The per-hand features of the hands alone, shared by this policy and
+    :mod:`baselines.lift_cloud_policy`, from checked ``(N, 117)`` float64 states and the
+    object's ``(N,)`` top height (m; world ``z``).
+
+    Returns ``own`` ``(N, 2, 35)``: hand ``k``'s errors to its goal (goal frame; m, rad, and
+    the same clipped to one action step), the world's ``+z``, heights (commanded centre, goal
+    centre, commanded centre above ``top``, ``top``), finger opening (dm), contacts, previous
+    finger command and motion; ``other`` ``(N, 2, 7)``: the other hand's distance and angle to
+    its goal, scaled distance, contacts, finger command and opening; the ``(N, 2, 3, 3)``
+    world-to-goal rotations and the ``(N, 2, 3)`` goal centres (world, m).
+    """
+    n = len(s)
+    goal_rot, goals, centres, rotations = goal_frames(s)
+    to_goal = np.swapaxes(goal_rot, -1, -2)
+    own_error = in_frame(to_goal, centres - goals)
+    actual_error = in_frame(to_goal, s[:, STATE_SLICES["centre_errors"]].reshape(n, 2, 3))
+    turn = in_frame(to_goal, rotation_vector(goal_rot @ np.swapaxes(rotations, -1, -2)))
     heights = np.stack(
         [
             centres[:, :, 2],
@@ -119,13 +149,13 @@ def hand_features(states: Any) -> tuple[np.ndarray, np.ndarray]:
             np.clip(-own_error / MAX_TRANSLATION, -1.0, 1.0),
             np.clip(-actual_error / MAX_TRANSLATION, -1.0, 1.0),
             np.clip(turn / MAX_ROTATION, -1.0, 1.0),
-            up,
+            to_goal[:, :, :, 2],
             heights,
             opening,
             contacts,
             finger,
-            _in_frame(to_goal, previous[:, :, :3]),
-            _in_frame(to_goal, previous[:, :, 3:6]),
+            in_frame(to_goal, previous[:, :, :3]),
+            in_frame(to_goal, previous[:, :, 3:6]),
         ],
         axis=-1,
     )
@@ -141,27 +171,15 @@ def hand_features(states: Any) -> tuple[np.ndarray, np.ndarray]:
         ],
         axis=-1,
     )[:, ::-1]
-    task = np.stack(
-        [
-            s[:, STATE_SLICES["lift"]][:, 0],
-            s[:, STATE_SLICES["hold"]][:, 0],
-            s[:, STATE_SLICES["elapsed"]][:, 0],
-            s[:, STATE_SLICES["object_linear_velocity"]][:, 2],
-        ],
-        axis=-1,
-    )
-    which = np.broadcast_to(np.eye(2), (n, 2, 2))
-    features = np.concatenate([own, other, np.repeat(task[:, None], 2, axis=1), which], axis=-1)
-    assert features.shape[-1] == FEATURES
-    return features.astype(np.float32), to_goal
+    return own, other, to_goal, goals
 
 
 def goal_frame_actions(actions: Any, to_goal: np.ndarray) -> np.ndarray:
     """``(N, 14)`` world actions -> ``(N, 2, 7)``: each hand's motion in its goal frame, its
     finger command as it is."""
     a = np.asarray(actions, dtype=np.float64).reshape(len(to_goal), 2, 7).copy()
-    a[:, :, :3] = _in_frame(to_goal, a[:, :, :3])
-    a[:, :, 3:6] = _in_frame(to_goal, a[:, :, 3:6])
+    a[:, :, :3] = in_frame(to_goal, a[:, :, :3])
+    a[:, :, 3:6] = in_frame(to_goal, a[:, :, 3:6])
     return a.astype(np.float32)
 
 
@@ -170,8 +188,8 @@ def world_actions(outputs: np.ndarray, to_goal: np.ndarray) -> np.ndarray:
     ``(N, 14)`` float32 world actions in [-1, 1] (finger +1 if the logit is > 0, else -1)."""
     out = np.asarray(outputs, dtype=np.float64).reshape(len(to_goal), 2, 7).copy()
     to_world = np.swapaxes(to_goal, -1, -2)
-    out[:, :, :3] = _in_frame(to_world, out[:, :, :3])
-    out[:, :, 3:6] = _in_frame(to_world, out[:, :, 3:6])
+    out[:, :, :3] = in_frame(to_world, out[:, :, :3])
+    out[:, :, 3:6] = in_frame(to_world, out[:, :, 3:6])
     out[:, :, 6] = np.where(out[:, :, 6] > 0.0, 1.0, -1.0)
     return np.clip(out.reshape(len(to_goal), 14), -1.0, 1.0).astype(np.float32)
 

@@ -49,15 +49,14 @@ import numpy as np
 import torch
 
 from baselines.lift_bc_policy import (
-    NEAR,
     check_payload,
     check_states,
+    hand_parts,
     read_payload,
     world_actions,
 )
 from dg16m_core.atomic import atomic_path
-from dg16m_env.envs.lift.observations import STATE_SLICES, goal_frames
-from dg16m_env.envs.lift.spaces import MAX_ROTATION, MAX_TRANSLATION, rotation_vector
+from dg16m_env.envs.lift.observations import STATE_SLICES
 
 FEATURES = 50
 """Vector features per hand (:func:`baselines.lift_cloud_policy.hand_features`)."""
@@ -137,11 +136,6 @@ def observation_inputs(
     return state, cloud, heights
 
 
-def in_frame(to_goal: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    """``(N, 2, 3)`` world vectors -> the goal frames (``to_goal`` ``(N, 2, 3, 3)`` = R^T)."""
-    return np.einsum("nkij,nkj->nki", to_goal, vectors)
-
-
 def privileged_free(states: Any) -> np.ndarray:
     """``(N, 117)`` float64 states with every part outside
     :data:`baselines.lift_cloud_policy.ALLOWED_STATE` set to 0 (what
@@ -175,55 +169,7 @@ def hand_features(
         raise ValueError(f"expected cloud heights of shape ({n}, 2), found shape {z.shape}")
     if not (np.isfinite(c).all() and np.isfinite(z).all()):
         raise ValueError("expected finite clouds and heights, found NaN or infinity")
-    goal_rot, goals, centres, rotations = goal_frames(s)
-    to_goal = np.swapaxes(goal_rot, -1, -2)
-    own_error = in_frame(to_goal, centres - goals)
-    actual_error = in_frame(to_goal, s[:, STATE_SLICES["centre_errors"]].reshape(n, 2, 3))
-    turn = in_frame(to_goal, rotation_vector(goal_rot @ np.swapaxes(rotations, -1, -2)))
-    top = z[:, 1]
-    heights_k = np.stack(
-        [
-            centres[:, :, 2],
-            goals[:, :, 2],
-            centres[:, :, 2] - top[:, None],
-            np.repeat(top[:, None], 2, axis=1),
-        ],
-        axis=-1,
-    )
-    opening = 10.0 * s[:, STATE_SLICES["finger_openings"]].reshape(n, 2, 1)
-    contacts = s[:, STATE_SLICES["finger_contacts"]].reshape(n, 2, 2)
-    previous = s[:, STATE_SLICES["previous_action"]].reshape(n, 2, 7)
-    finger = previous[:, :, 6:7]
-    own = np.concatenate(
-        [
-            own_error,
-            actual_error,
-            turn,
-            np.clip(-own_error / MAX_TRANSLATION, -1.0, 1.0),
-            np.clip(-actual_error / MAX_TRANSLATION, -1.0, 1.0),
-            np.clip(turn / MAX_ROTATION, -1.0, 1.0),
-            to_goal[:, :, :, 2],
-            heights_k,
-            opening,
-            contacts,
-            finger,
-            in_frame(to_goal, previous[:, :, :3]),
-            in_frame(to_goal, previous[:, :, 3:6]),
-        ],
-        axis=-1,
-    )
-    distance = np.linalg.norm(np.maximum(np.abs(own_error), np.abs(actual_error)), axis=-1)
-    other = np.concatenate(
-        [
-            np.linalg.norm(own_error, axis=-1, keepdims=True),
-            np.linalg.norm(turn, axis=-1, keepdims=True),
-            np.clip(distance / NEAR, 0.0, 5.0)[..., None],
-            contacts,
-            finger,
-            opening,
-        ],
-        axis=-1,
-    )[:, ::-1]
+    own, other, to_goal, goals = hand_parts(s, z[:, 1])
     task = np.concatenate([z, s[:, STATE_SLICES["elapsed"]]], axis=-1)
     # (N, 2, P, 3): each hand's cloud relative to its goal centre, in its goal's axes
     local = np.einsum("nkij,npj->nkpi", to_goal.astype(np.float32), c) - np.einsum(

@@ -417,20 +417,37 @@ class FeedbackLiftExpert:
         at_goal = (errors < self.POSITION_TOLERANCE) & (angles < self.ANGLE_TOLERANCE)
         holding = closing and bool(np.all(contacts.any(axis=1) | (errors < self.NEAR_GOAL)))
         if at_goal.all() or holding:
-            for k in range(2):
-                action[7 * k : 7 * k + 6] = _motion(
-                    centres[k], rotations[k], goals[k], target_rot[k]
-                )
-            action[[6, 13]] = 1.0
-            return "close", np.clip(action, -1.0, 1.0).astype(np.float32)
+            return "close", self._close_action(centres, rotations, goals, target_rot)
+        return "approach", self._approach_action(part, centres, rotations, goals, target_rot)
 
+    @staticmethod
+    def _close_action(
+        centres: np.ndarray, rotations: np.ndarray, goals: np.ndarray, goal_rots: np.ndarray
+    ) -> np.ndarray:
+        """The ``"close"`` action: each hand keeps to its goal, the fingers close."""
+        action = np.zeros(ACTION_SIZE)
+        for k in range(2):
+            action[7 * k : 7 * k + 6] = _motion(centres[k], rotations[k], goals[k], goal_rots[k])
+        action[[6, 13]] = 1.0
+        return np.clip(action, -1.0, 1.0).astype(np.float32)
+
+    def _approach_action(
+        self,
+        part: dict[str, np.ndarray],
+        centres: np.ndarray,
+        rotations: np.ndarray,
+        goals: np.ndarray,
+        goal_rots: np.ndarray,
+    ) -> np.ndarray:
+        """The ``"approach"`` action: each hand on its way (:meth:`_approach`), fingers open."""
+        action = np.zeros(ACTION_SIZE)
         corners = self._box_corners(part)
         for k in range(2):
             action[7 * k : 7 * k + 6] = self._approach(
-                centres[k], rotations[k], goals[k], target_rot[k], corners
+                centres[k], rotations[k], goals[k], goal_rots[k], corners
             )
         action[[6, 13]] = -1.0
-        return "approach", np.clip(action, -1.0, 1.0).astype(np.float32)
+        return np.clip(action, -1.0, 1.0).astype(np.float32)
 
     def _rise(self, lift: float, rising: bool) -> float:
         """Rise of both hands this step (m)."""

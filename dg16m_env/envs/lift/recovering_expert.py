@@ -163,20 +163,8 @@ class RecoveringLiftExpert(FeedbackLiftExpert):
         if (at_goal.all() or holding) and not (
             closing and (empty.any() or (misplaced and contacts.all()))
         ):
-            for k in range(2):
-                action[7 * k : 7 * k + 6] = _motion(
-                    centres[k], rotations[k], goals[k], target_rot[k]
-                )
-            action[[6, 13]] = 1.0
-            return "close", np.clip(action, -1.0, 1.0).astype(np.float32)
-
-        corners = self._box_corners(part)
-        for k in range(2):
-            action[7 * k : 7 * k + 6] = self._approach(
-                centres[k], rotations[k], goals[k], target_rot[k], corners
-            )
-        action[[6, 13]] = -1.0
-        return "approach", np.clip(action, -1.0, 1.0).astype(np.float32)
+            return "close", self._close_action(centres, rotations, goals, target_rot)
+        return "approach", self._approach_action(part, centres, rotations, goals, target_rot)
 
     def _hold(
         self, part: dict[str, np.ndarray], centres: np.ndarray, rotations: np.ndarray
