@@ -20,6 +20,8 @@ import trimesh
 
 pytest.importorskip("mujoco")
 
+from test_build_stopping import default_sigint
+
 from dataset_gen.io import new_manifest, read_manifest, write_manifest
 from dg16m_core.cli import EXIT_INTERRUPTED
 from dg16m_core.cli import main as cli_main
@@ -259,7 +261,12 @@ def test_objects_decompose_stops_inside_coacd(signum: int, tmp_path: Path) -> No
         *("objects", "decompose", str(tmp_path / "vase.obj"), "--no-cache"),
     ]
     process = subprocess.Popen(
-        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=os.environ,
+        preexec_fn=default_sigint,
     )
     try:
         time.sleep(6.0)  # the child is in CoACD now (the vase takes it tens of seconds)

@@ -80,6 +80,15 @@ def _descendants(pid: int) -> list[int]:
     return children + [g for c in children for g in _descendants(c)]
 
 
+def default_sigint() -> None:
+    """``preexec_fn`` of a command the tests interrupt: SIGINT at its default in the child.
+
+    A test run started as a background job of a non-interactive shell inherits SIGINT ignored
+    (POSIX), and a Python started with SIGINT ignored installs no ``KeyboardInterrupt``
+    handler, so the command would never see the Ctrl-C the test sends it."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _alive(pid: int) -> bool:
     try:
         state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
@@ -105,7 +114,12 @@ def test_a_signal_stops_the_build_inside_coacd_and_keeps_what_was_finished(
         *("--workers", str(workers)),
     ]
     process = subprocess.Popen(
-        command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=os.environ
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=os.environ,
+        preexec_fn=default_sigint,
     )
     try:
         started = time.monotonic()

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pytest
 import trimesh
-from test_build_stopping import STOP_WITHIN_S, _alive, _descendants, thin_vase
+from test_build_stopping import STOP_WITHIN_S, _alive, _descendants, default_sigint, thin_vase
 
 from dataset_gen.io import read_manifest
 from dataset_gen.objects import decomposition as dec
@@ -146,7 +146,12 @@ def _stop_inside_coacd(command: list[str], signum: int, cache: Path) -> tuple[in
     to end; check that none of its processes outlived it."""
     env = {**os.environ, "DG16M_CACHE_DIR": str(cache)}
     process = subprocess.Popen(
-        command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
+        preexec_fn=default_sigint,
     )
     try:
         started = time.monotonic()
