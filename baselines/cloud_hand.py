@@ -110,10 +110,11 @@ def hand_hits_cloud(
     hit = np.zeros(len(poses), dtype=bool)
     for stride in [len(pts) // size for size in COARSE_POINTS if len(pts) // size > 1]:
         rest = np.flatnonzero(~hit)
+        if len(rest) == 0:
+            break
         coarse = pts[::stride]
-        if len(rest):
-            args = (poses[rest], contact_x[rest], model, tolerance, clearance)
-            hit[rest] = _hits(coarse, cKDTree(coarse), *args)
+        args = (poses[rest], contact_x[rest], model, tolerance, clearance)
+        hit[rest] = _hits(coarse, cKDTree(coarse), *args)
     rest = np.flatnonzero(~hit)
     if len(rest):
         tree = tree if tree is not None else cKDTree(pts)
