@@ -28,8 +28,8 @@ that raises (no dual candidate on the cloud) or returns an action outside the sp
 episode; nothing is left out of the rate. Success rates with Wilson 95% intervals, each
 policy's paired difference from the first (the same episodes; a seeded bootstrap over
 episodes), the trials' invalid starts (``info["invalid_reason"]``: a hand penetrating the
-object, ...), the seconds per action and each episode's record go to ``out`` (JSON), the rates
-to stdout and, with ``plot``, a bar chart.
+object, the hands overlapping), the seconds per action and each episode's record go to
+``out`` (JSON), the rates to stdout and, with ``plot``, a bar chart.
 
     .venv/bin/python -m baselines.flow_pose_policy --out runs/flow_pose/procedural.json
 """
@@ -50,10 +50,14 @@ from baselines.cloud_inputs import CloudError
 from baselines.sb3_common import parse_args, uniform_actions
 from dg16m_core.atomic import write_json_atomic
 from dg16m_core.progress import progress_bar
+from dg16m_env.physics.trial_protocol import InvalidReason
 
 ENV_ID = "dg16m_env/DualGraspPose-v0"
 POLICIES = ("flow", "flow_random", "sampler", "random_actions")
 """The policies the script can score (module docstring)."""
+INVALID_STARTS = tuple(r.name.lower() for r in InvalidReason if r != InvalidReason.NONE)
+"""``info["invalid_reason"]`` of a trial not run because its start was invalid (a hand in the
+object, the hands overlapping): the env's names of the trial's invalid reasons."""
 
 
 def policy_cloud(observation: Mapping[str, Any]) -> dict[str, Any]:
@@ -214,7 +218,7 @@ def summarise(episodes: list[dict[str, Any]]) -> dict[str, Any]:
     seconds = [e["seconds"] for e in episodes if e.get("seconds") is not None]
     failures = collections.Counter(e["failure"] for e in episodes if not e["success"])
     reasons = {str(k).split(":")[0]: v for k, v in sorted(failures.items(), key=str)}
-    invalid = sum(v for k, v in failures.items() if k and "penetrat" in str(k))
+    invalid = sum(failures[name] for name in INVALID_STARTS)
     return {
         **wilson_interval(successes, len(episodes)),
         "successes": successes,

@@ -24,6 +24,7 @@ from baselines.flow_pose_policy import (
     paired_difference,
     policy_cloud,
     run_episode,
+    summarise,
 )
 from dg16m_env.benchmark.names import REAL_BENCHMARK
 
@@ -125,6 +126,16 @@ def test_the_script_scores_every_episode_and_writes_results(tmp_path: Path) -> N
     assert paired["difference"] == pytest.approx(
         results["rates"][1]["rate"] - results["rates"][0]["rate"]
     )
+
+
+def test_every_invalid_start_counts_and_every_failure_stays_in_the_rate() -> None:
+    reasons = ["hand0_penetrates", "hand1_penetrates", "hands_overlap", "not held"]
+    episodes = [{"seed": i, "success": False, "failure": r} for i, r in enumerate(reasons)]
+    episodes.append({"seed": 9, "success": True, "failure": None, "seconds": 0.5})
+    row = summarise(episodes)
+    assert row["invalid_starts"] == 3 / 5
+    assert row["rate"] == 1 / 5
+    assert sum(row["failures"].values()) == 4
 
 
 def test_the_paired_difference_is_over_the_same_episodes() -> None:
