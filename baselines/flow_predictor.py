@@ -6,7 +6,9 @@ cloud``) :class:`FlowPredictor`
 
 1. takes ``check_points`` of the observation's points and estimated normals in a random order
    (the cloud track's harness cameras; a mesh-track observation's own ``points`` / ``normals``
-   otherwise) for the checks, the first ``n_points`` of them for the models;
+   otherwise) for the checks, the first ``n_points`` of them for the models (with ``smoothing``,
+   each camera's depth is smoothed first and the points and normals rebuilt from it:
+   :mod:`baselines.depth_smoothing`, :data:`flow_smoothed_predictor`);
 2. draws ``n_samples`` anchor points of the cloud (in proportion to the generator's learned
    graspability of each point) and one hand per anchor from the generator
    (:class:`baselines.dual_grasp_flow.AnchoredGraspFlow`: flow matching of a hand's pose about
@@ -68,6 +70,7 @@ from baselines.cloud_predictor import (
     is_cloud_track,
     stream_name,
 )
+from baselines.depth_smoothing import DepthSmoothing, smoothed_observation
 from dataset_gen.grasps.gripper import GripperModel, get_gripper
 from dataset_gen.grasps.pairing import candidate_pairs
 from dataset_gen.grasps.sampling import SingleArmGrasps
@@ -320,6 +323,9 @@ class FlowPredictor:
             :data:`baselines.cloud_predictor.PARTIAL_SAMPLER`); ``"sampler"``, the sampler's
             only (an ablation: the same pairing, checks and ranker without the generator).
         threads: torch threads.
+        smoothing: with a cloud-track observation (its depth images), each camera's depth is
+            first smoothed (:mod:`baselines.depth_smoothing`) and the points and normals
+            rebuilt from it; None: the observation's points and normals as they are.
     """
 
     generator_checkpoint: str | None = None
@@ -335,6 +341,7 @@ class FlowPredictor:
     anchors: AnchorSampling = "learned"
     proposals: Proposals = "generator+sampler"
     threads: int = 1
+    smoothing: DepthSmoothing | None = None
 
     def __post_init__(self) -> None:
         if self.ranker not in FLOW_RANKERS:
@@ -361,6 +368,8 @@ class FlowPredictor:
         check_observation(observation)
         stream = object_seed(self.seed, f"flow:{stream_name(observation)}")
         rng = np.random.default_rng(stream)
+        if self.smoothing is not None and is_cloud_track(observation):
+            observation = smoothed_observation(observation, self.smoothing)
         dense = observed_cloud(observation, self.check_points, rng)
         cloud = check_cloud(dense.points[: self.n_points], dense.normals[: self.n_points])
         generator = load_generator(
@@ -414,6 +423,9 @@ class FlowPredictor:
 flow_predictor = FlowPredictor()
 """The shipped generator and ranker: 512 generated hands and the cloud sampler's, the 10 best pairs
 (``--track cloud``)."""
+
+flow_smoothed_predictor = FlowPredictor(smoothing=DepthSmoothing())
+"""The same with each camera's depth smoothed first (:mod:`baselines.depth_smoothing`)."""
 
 flow_random_predictor = FlowPredictor(ranker="random")
 """The same pairs and checks in random order within each group: the ranker's control."""

@@ -75,6 +75,10 @@ class Args:
     """folder of the objects' clouds across runs (default: OUT/clouds)"""
     limit: int = 0
     """use the first N train objects (and N validation objects) only (0: all)"""
+    sources: str = ""
+    """comma-separated collections to train both models on (the data card's source column, e.g.
+    'sweethome3d', to fine-tune the shipped generator on furniture with --init-generator);
+    empty: every collection"""
     init_generator: str = ""
     """start the generator from this checkpoint's weights (e.g. the shipped
     baselines/checkpoints/grasp-flow.pt, to fine-tune on another dataset); empty: from scratch"""
@@ -185,6 +189,15 @@ def open_dataset(args: Args, split: str) -> Any:
         grasp_cache=1,
         cache_dir=cache,
     )
+    if args.sources:
+        wanted = set(args.sources.split(","))
+        found = sorted({r.source for r in ds.records})
+        ds.records = [r for r in ds.records if r.source in wanted]
+        if not ds.records:
+            raise TrainingArgumentsError(
+                f"sources: expected some of {found} (the {split!r} split's), found {args.sources!r}"
+            )
+        ds.object_ids = [r.object_id for r in ds.records]
     if args.limit:
         ds.records = ds.records[: args.limit]
         ds.object_ids = ds.object_ids[: args.limit]

@@ -6,7 +6,8 @@ furniture, every n-th one), the cloud track's observation (:func:`dg16m_env.subj
 cloud_observation.cloud_observation`, two cameras, kinect noise) is made once, then the call
 ``observation -> 10 dual grasps`` is timed ``--repeats`` times after a warm-up (models loaded),
 per object the minimum, then the median and maximum over the objects, for
-:data:`baselines.flow_predictor.flow_predictor` and, as the reference predictor,
+:data:`baselines.flow_predictor.flow_predictor`, its variant with each camera's depth smoothed
+first (:data:`baselines.flow_predictor.flow_smoothed_predictor`) and, as the reference predictor,
 :data:`baselines.cloud_predictor.cgdf_robust_predictor` (the two-camera sample-and-rank
 predictor it replaces). The machine reference is a fixed 1024 x 1024 float32 numpy matmul
 repeated 20 times (the machine is shared and noisy; ratios travel better than seconds).
@@ -36,7 +37,7 @@ import numpy as np
 
 from baselines.cloud_grasps import CloudError
 from baselines.cloud_predictor import cgdf_robust_predictor
-from baselines.flow_predictor import flow_predictor
+from baselines.flow_predictor import flow_predictor, flow_smoothed_predictor
 from dg16m_core.atomic import write_json_atomic
 from dg16m_env.evaluators import load_benchmark_ref
 from dg16m_env.subjects.cloud_observation import cloud_observation
@@ -99,12 +100,14 @@ def main() -> None:
         per_object(predictor, observations[:1], 1)
     reference = matmul_reference()
     flow = per_object(flow_predictor, observations, args.repeats)
+    smoothed = per_object(flow_smoothed_predictor, observations, args.repeats)
     robust = per_object(cgdf_robust_predictor, observations, args.repeats)
     summary = {
         "benchmark": args.benchmark,
         "objects": len(observations),
         "matmul_reference_s": round(reference, 4),
         "flow_predictor_s": spread(flow),
+        "flow_smoothed_predictor_s": spread(smoothed),
         "cgdf_robust_predictor_s": spread(robust),
         "flow_slowest": dict(sorted(zip(ids, flow, strict=True), key=lambda kv: -kv[1])[:5]),
         "flow_over_cgdf_robust": statistics.median(flow) / statistics.median(robust),
@@ -115,8 +118,8 @@ def main() -> None:
     print(
         f"{len(observations)} objects ({args.benchmark}), one core: flow_predictor median "
         f"{flow_s['median']:.2f} s (p95 {flow_s['p95']:.2f}, max {flow_s['max']:.2f}, "
-        f"{flow_s['over_target']} over {TARGET_S} s), "
-        "cgdf_robust "
+        f"{flow_s['over_target']} over {TARGET_S} s), flow_smoothed_predictor median "
+        f"{statistics.median(smoothed):.2f} s (max {max(smoothed):.2f}), cgdf_robust "
         f"{statistics.median(robust):.2f} s: ratio {summary['flow_over_cgdf_robust']:.2f}; "
         f"matmul reference {reference:.3f} s; target {TARGET_S} s"
     )

@@ -120,6 +120,18 @@ def test_sampling_is_deterministic_for_a_seed_and_refuses_a_bad_cloud() -> None:
         model.sample(bad, anchors, torch.Generator())
 
 
+def test_sources_keep_only_the_named_collections_and_refuse_an_absent_one(
+    dataset: Path, tmp_path: Path
+) -> None:
+    args = replace(tiny_args(dataset, tmp_path / "run"), sources="procedural")
+    every = training.open_dataset(replace(args, sources=""), "train")
+    kept = training.open_dataset(args, "train")
+    assert {r.source for r in every.records} == {"procedural"}
+    assert kept.object_ids == every.object_ids == [r.object_id for r in kept.records]
+    with pytest.raises(training.TrainingArgumentsError, match=r"expected some of \['procedural'\]"):
+        training.open_dataset(replace(args, sources="sweethome3d"), "train")
+
+
 def test_training_runs_resumes_to_the_same_weights_and_refuses_another_runs_state(
     dataset: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -240,7 +252,9 @@ def test_a_hand_around_a_bar_snaps_onto_it_and_one_through_it_is_dropped() -> No
     np.testing.assert_allclose(np.abs(singles.contact_points[0, :, 0]), 0.015, atol=1e-9)
 
 
-@pytest.mark.parametrize("name", ["flow_predictor", "flow_random_predictor"])
+@pytest.mark.parametrize(
+    "name", ["flow_predictor", "flow_random_predictor", "flow_smoothed_predictor"]
+)
 def test_the_registered_predictors_run_on_the_cloud_track(tmp_path: Path, name: str) -> None:
     from dg16m_env.subjects.predictor import submission_from_predictor
     from dg16m_env.subjects.predictor_process import PredictorSpec
@@ -257,6 +271,22 @@ def test_the_registered_predictors_run_on_the_cloud_track(tmp_path: Path, name: 
     assert run.errors == {}
     submission = read_submission(path, object_ids=objects)
     assert submission.metadata["track"]["name"] == "cloud"
+
+
+def test_depth_smoothing_moves_the_same_points_a_little_and_keeps_the_stream(
+    procedural_object,
+) -> None:
+    from baselines.depth_smoothing import DepthSmoothing
+
+    observation = cloud_observation(procedural_object)
+    raw, *_ = FlowPredictor().candidates(observation)
+    smooth, *_ = FlowPredictor(smoothing=DepthSmoothing()).candidates(observation)
+    # the same pixels drawn (the stream is named by the observation as given), each moved
+    # along its ray by less than the sensor's noise
+    moved = np.linalg.norm(smooth.points - raw.points, axis=1)
+    assert 0.0 < np.median(moved) < 0.005
+    again, *_ = FlowPredictor(smoothing=DepthSmoothing()).candidates(observation)
+    np.testing.assert_array_equal(again.points, smooth.points)
 
 
 def test_the_ablations_share_the_samplers_draws_and_refuse_bad_settings(procedural_object) -> None:

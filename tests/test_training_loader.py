@@ -22,6 +22,7 @@ from dg16m_env.training.grasp_dataset import (  # noqa: E402
     DualGraspDataset,
     DualGraspStream,
     TrainingDataError,
+    dataset_objects,
     read_object_grasps,
 )
 
@@ -145,3 +146,20 @@ def test_a_partial_cloud_is_what_the_cloud_track_cameras_see(folder: Path) -> No
     full = DualGraspDataset(folder, splits=("train", "validation"), n_points=300)[0]["cloud"]
     gap = np.linalg.norm(full[:, None, :] - seen[None, :, :], axis=2).min(axis=1)
     assert (gap > 0.02).mean() > 0.1  # the cameras miss parts of the object the full cloud has
+
+
+def test_a_record_names_its_collection_as_the_data_card_does(folder: Path, tmp_path: Path) -> None:
+    import json
+    import shutil
+
+    copy = tmp_path / "ds"
+    shutil.copytree(folder, copy)
+    manifest = json.loads((copy / "manifest.json").read_text())
+    first, second = sorted(manifest["entries"])[:2]
+    manifest["entries"][first]["origin"]["source"] = "sweethome3d"  # a mesh source's collection
+    manifest["entries"][first]["source"] = "mesh"
+    manifest["entries"][second].pop("origin")
+    (copy / "manifest.json").write_text(json.dumps(manifest))
+    records = {r.object_id: r for r in dataset_objects(copy, ("train", "validation"))}
+    assert records[first].source == "sweethome3d"
+    assert records[second].source == "procedural"  # no origin: the entry's own source

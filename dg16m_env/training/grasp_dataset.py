@@ -56,14 +56,17 @@ class TrainingDataError(Dg16mError, ValueError):
 
 @dataclass(frozen=True)
 class ObjectRecord:
-    """One object of a dataset: its id, split, grasp file and mesh file (absolute paths) and
-    how many dual grasps its file holds (the manifest's count)."""
+    """One object of a dataset: its id, split, grasp file and mesh file (absolute paths), how
+    many dual grasps its file holds (the manifest's count) and the collection it came from (the
+    data card's ``source`` column: the entry's ``origin.source``, e.g. ``"procedural"`` or
+    ``"sweethome3d"``, else the entry's ``source``; empty when neither is recorded)."""
 
     object_id: str
     split: str
     grasps: Path
     mesh: Path
     pairs: int
+    source: str = ""
 
 
 def dataset_objects(folder: str | os.PathLike[str], splits: Sequence[str]) -> list[ObjectRecord]:
@@ -98,7 +101,14 @@ def dataset_objects(folder: str | os.PathLike[str], splits: Sequence[str]) -> li
                     f"{object_id}: expected {path} (listed in {root}/manifest.json), found none"
                 )
         records.append(
-            ObjectRecord(object_id, str(entry["split"]), grasps, mesh, int(entry["pairs"]))
+            ObjectRecord(
+                object_id,
+                str(entry["split"]),
+                grasps,
+                mesh,
+                int(entry["pairs"]),
+                str(entry.get("origin", {}).get("source") or entry.get("source", "")),
+            )
         )
     if not records:
         raise TrainingDataError(f"{root}: expected objects in splits {list(splits)}, found none")
