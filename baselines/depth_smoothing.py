@@ -23,7 +23,12 @@ from typing import Any
 import numpy as np
 
 from baselines.cloud_grasps import CloudError
-from dg16m_env.subjects.cloud_observation import AXIAL_SIGMA, back_project, estimate_normals
+from dg16m_env.subjects.cloud_observation import (
+    AXIAL_SIGMA,
+    back_project,
+    estimate_normals,
+    window_shifts,
+)
 
 
 @dataclass(frozen=True)
@@ -63,22 +68,6 @@ class DepthSmoothing:
         return a + b * (np.asarray(depth, dtype=np.float64) - z0) ** 2
 
 
-def _window_shifts(image: np.ndarray, radius: int) -> np.ndarray:
-    """(S, H, W, ...) ``image`` shifted by each offset of a ``(2 radius + 1)`` square window,
-    zeros outside the image."""
-    h, w = image.shape[:2]
-    pad = [(radius, radius), (radius, radius)] + [(0, 0)] * (image.ndim - 2)
-    padded = np.pad(image, pad)
-    side = range(-radius, radius + 1)
-    return np.stack(
-        [
-            padded[radius + i : radius + i + h, radius + j : radius + j + w]
-            for i in side
-            for j in side
-        ]
-    )
-
-
 def smooth_depth(
     depth: np.ndarray, intrinsics: np.ndarray, config: DepthSmoothing = DepthSmoothing()
 ) -> np.ndarray:
@@ -96,7 +85,7 @@ def smooth_depth(
     depth = np.asarray(depth, dtype=np.float64)
     seen = depth > 0.0
     points = back_project(depth, np.asarray(intrinsics, dtype=np.float64))  # (H, W, 3)
-    near = _window_shifts(depth, config.radius)  # (S, H, W)
+    near = window_shifts(depth, config.radius)  # (S, H, W)
     gate = np.maximum(config.gate_sigmas * config.sigma(depth), 1e-3)
     weight = ((near > 0.0) & (np.abs(near - depth) <= gate) & seen).astype(np.float64)
     count = weight.sum(axis=0)
@@ -105,7 +94,7 @@ def smooth_depth(
     if not fit.any():
         return out
     w = weight[:, fit]  # (S, N)
-    p = _window_shifts(points, config.radius)[:, fit]  # (S, N, 3)
+    p = window_shifts(points, config.radius)[:, fit]  # (S, N, 3)
     mean = np.einsum("sn,sni->ni", w, p) / count[fit][:, None]
     d = p - mean
     cov = np.einsum("sn,sni,snj->nij", w, d, d)

@@ -197,15 +197,20 @@ def camera_pose_matrix(axes: np.ndarray, position: np.ndarray) -> np.ndarray:
 # The noise model and the estimated normals
 
 
-def _neighbour_shifts(image: np.ndarray, fill: Any) -> np.ndarray:
-    """(9, H, W, ...) ``image`` shifted by each offset of a 3 x 3 window (``fill`` outside)."""
+def window_shifts(image: np.ndarray, radius: int = 1, fill: Any = 0.0) -> np.ndarray:
+    """(S, H, W, ...) ``image`` (H, W, ...) shifted by each offset of a ``(2 radius + 1)`` square
+    window, row offsets outer, column offsets inner (S = (2 radius + 1)^2; ``fill`` outside)."""
     h, w = image.shape[:2]
-    pad = [(1, 1), (1, 1)] + [(0, 0)] * (image.ndim - 2)
+    pad = [(radius, radius), (radius, radius)] + [(0, 0)] * (image.ndim - 2)
     padded = np.pad(image, pad, constant_values=fill)
-    return np.stack([padded[1 + di : 1 + di + h, 1 + dj : 1 + dj + w] for di, dj in _OFFSETS])
-
-
-_OFFSETS = [(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
+    side = range(-radius, radius + 1)
+    return np.stack(
+        [
+            padded[radius + i : radius + i + h, radius + j : radius + j + w]
+            for i in side
+            for j in side
+        ]
+    )
 
 
 def edge_pixels(depth: np.ndarray) -> np.ndarray:
@@ -267,8 +272,8 @@ def estimate_normals(camera_points: np.ndarray, depth: np.ndarray) -> np.ndarray
     :data:`EDGE_JUMP_M` of its depth, turned toward the camera; where fewer than 3 such pixels
     (or a degenerate patch), the direction back to the camera. Zeros where ``depth`` is 0."""
     valid = depth > 0.0
-    shifted = _neighbour_shifts(camera_points, 0.0)  # (9, H, W, 3)
-    near = _neighbour_shifts(depth, 0.0)
+    shifted = window_shifts(camera_points)  # (9, H, W, 3)
+    near = window_shifts(depth)
     weight = ((near > 0.0) & (np.abs(near - depth) <= EDGE_JUMP_M) & valid).astype(np.float64)
     count = weight.sum(axis=0)
     normals = np.zeros_like(camera_points)
@@ -424,4 +429,5 @@ __all__ = [
     "intrinsics_matrix",
     "noisy_depth",
     "object_cameras",
+    "window_shifts",
 ]
