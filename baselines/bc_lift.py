@@ -24,7 +24,13 @@ Reads top to bottom (CleanRL style): one dataclass of arguments, then the run.
    path the expert retreats up and across, a different strategy that the network averages with
    path following. Measured on 100 held-out episodes: behaviour cloning alone 49% [39.4,
    58.7]; one round keeping every label fell to 15 of 40; one round of grasp-phase labels 61%
-   [51.2, 70.0] (baselines/RESULTS.md).
+   [51.2, 70.0] (baselines/RESULTS.md). With ``--dagger-on-path true`` (demonstrations of
+   :class:`~dg16m_env.envs.lift.recovering_expert.RecoveringLiftExpert`) the approach states
+   where both hands follow their approach paths are labelled too
+   (:meth:`~dg16m_env.envs.lift.recovering_expert.RecoveringLiftExpert.following_path`): there
+   that expert's labels are local as well (on along the path, or back along it), and they
+   teach the way back after a dropped grasp; every approach label, the way round over the
+   object included, still costs (baselines/RESULTS.md, issue 57).
 5. Evaluate on the held-out objects with the registered ``policy`` evaluator: the learned
    policy, the expert and uniformly random actions on the same seeded episodes, each with a
    Wilson 95% interval; then on the real benchmark's held-out objects when asked.
@@ -66,6 +72,7 @@ from dg16m_core.atomic import atomic_path
 from dg16m_env.envs.lift.expert_registry import make_lift_expert
 from dg16m_env.envs.lift.experts import FeedbackLiftExpert
 from dg16m_env.envs.lift.observations import STATE_SIZE
+from dg16m_env.envs.lift.recovering_expert import RecoveringLiftExpert
 from dg16m_env.evaluators import EvaluationResult
 
 PHASES = ("approach", "close", "lift")
@@ -96,6 +103,8 @@ class Args:
     """probability that a rollout step takes the expert's action in the first round (halved each round)"""
     dagger_phases: str = "close,lift"
     """the expert's phases whose DAgger labels are kept (comma-separated; 'all' keeps every label)"""
+    dagger_on_path: bool = False
+    """also keep the approach labels where both hands follow their approach paths (an expert with 'following_path': recovering)"""
     dagger_seed: int = 1_000_000
     """first seed of the DAgger rollouts (apart from the demonstrations' and the evaluation's)"""
     eval_episodes: int = 100
@@ -189,6 +198,12 @@ def train(x: np.ndarray, y: np.ndarray, args: Args) -> tuple[LiftBCPolicy, float
     return LiftBCPolicy(network, mean, std, args.hidden, args.layers), mean_loss
 
 
+def _both_on_path(expert: FeedbackLiftExpert, obs: Any) -> bool:
+    """Whether both hands of an approach state follow their paths (only a
+    :class:`~dg16m_env.envs.lift.recovering_expert.RecoveringLiftExpert` says so)."""
+    return isinstance(expert, RecoveringLiftExpert) and bool(expert.following_path(obs).all())
+
+
 def dagger_rollouts(
     env: Any,
     policy: LiftBCPolicy,
@@ -197,9 +212,11 @@ def dagger_rollouts(
     beta: float,
     phases: set[str] | None,
     rng: Any,
+    on_path: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """The visited states whose expert phase is in ``phases`` (None: all), the expert's actions
-    there, and the share of episodes that succeeded."""
+    """The visited states whose expert phase is in ``phases`` (None: all) or, with ``on_path``,
+    that are approach states where both hands follow their paths (``expert.following_path``),
+    the expert's actions there, and the share of episodes that succeeded."""
     from dg16m_core.progress import progress_bar
 
     states, labels, successes = [], [], 0
@@ -207,7 +224,11 @@ def dagger_rollouts(
         obs, _ = env.reset(seed=seed)
         while True:
             phase, label = expert.decide(obs)
-            if phases is None or phase in phases:
+            if (
+                phases is None
+                or phase in phases
+                or (on_path and phase == "approach" and _both_on_path(expert, obs))
+            ):
                 states.append(obs)
                 labels.append(label)
             action = label if rng.random() < beta else policy(obs)
@@ -269,6 +290,11 @@ def main() -> None:
         raise SystemExit(
             f"--dagger-phases: expected 'all' or phases among {PHASES}, found {args.dagger_phases!r}"
         )
+    if args.dagger_on_path and not isinstance(expert, RecoveringLiftExpert):
+        raise SystemExit(
+            "--dagger-on-path: expected demonstrations of an expert that says when its hands "
+            f"follow their paths (recovering), found {type(expert).__name__}"
+        )
 
     # --- behaviour cloning on the demonstrations ---------------------------------------------
     started = time.perf_counter()
@@ -289,7 +315,7 @@ def main() -> None:
         first = args.dagger_seed + i * args.dagger_episodes
         seeds = range(first, first + args.dagger_episodes)
         new_states, new_actions, rate = dagger_rollouts(
-            env, policy, expert, seeds, beta, phases, rng
+            env, policy, expert, seeds, beta, phases, rng, args.dagger_on_path
         )
         new_x, new_y = training_pairs(new_states, new_actions)
         x, y = np.concatenate([x, new_x]), np.concatenate([y, new_y])

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("torch")
@@ -57,22 +58,51 @@ def test_two_episode_smoke_run(tmp_path: Path, demos: Path) -> None:
     assert policy.hidden == 16
 
 
-def test_wrong_phases_are_refused(tmp_path: Path, demos: Path) -> None:
+def refusal(tmp_path: Path, demos: Path, *options: str) -> str:
+    """The error output of a run with ``options`` that must fail."""
+    command = [sys.executable, "-m", "baselines.bc_lift", "--demos", str(demos), *options]
     result = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "baselines.bc_lift",
-            "--demos",
-            str(demos),
-            "--dagger-phases",
-            "grasp",
-            "--out",
-            str(tmp_path / "run"),
-        ],
+        [*command, "--out", str(tmp_path / "run")],
         capture_output=True,
         text=True,
         timeout=300,
     )
     assert result.returncode != 0
-    assert "expected 'all' or phases among" in result.stderr
+    return result.stderr
+
+
+def test_wrong_phases_are_refused(tmp_path: Path, demos: Path) -> None:
+    assert "expected 'all' or phases among" in refusal(tmp_path, demos, "--dagger-phases", "grasp")
+
+
+def test_on_path_labels_keep_the_grasp_phases_and_approach_states_on_the_paths() -> None:
+    import gymnasium as gym
+
+    from baselines.bc_lift import dagger_rollouts
+    from dg16m_env.envs.lift.recovering_expert import RecoveringLiftExpert
+
+    expert = RecoveringLiftExpert()
+    env = gym.make("dg16m_env/DualGraspLift-v2")
+    try:
+        # the expert as its own policy (beta 1): seed 42 is an episode it completes
+        rng = np.random.default_rng(0)
+        kept, _, rate = dagger_rollouts(
+            env, expert, expert, range(42, 43), 1.0, {"lift"}, rng, True
+        )
+        rng = np.random.default_rng(0)
+        grasp_only, _, _ = dagger_rollouts(
+            env, expert, expert, range(42, 43), 1.0, {"lift"}, rng, False
+        )
+    finally:
+        env.close()
+    assert rate == 1.0
+    phases = [expert.phase(state) for state in kept]
+    assert set(phases) == {"approach", "lift"}
+    for state, phase in zip(kept, phases, strict=True):
+        assert phase == "lift" or expert.following_path(state).all()
+    assert len(grasp_only) == phases.count("lift") < len(kept)
+
+
+def test_on_path_labels_need_an_expert_that_says_so(tmp_path: Path, demos: Path) -> None:
+    stderr = refusal(tmp_path, demos, "--dagger-on-path", "true")
+    assert "found FeedbackLiftExpert" in stderr

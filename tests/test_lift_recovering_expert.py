@@ -236,3 +236,14 @@ def test_robustness_script_refuses_bad_arguments(tmp_path, field, value, message
     with pytest.raises(ValueError, match=message):
         main(Args(**{field: value, "out": out}))
     assert not out.exists()
+
+
+def test_following_path_says_which_hands_are_on_their_paths(episode) -> None:
+    observations = episode[0]
+    expert = RecoveringLiftExpert()
+    # at reset both hands are far from their approach paths; at the last approach step, on them
+    assert expert.following_path(observations[0]).tolist() == [False, False]
+    last_approach = [obs for obs in observations if expert.phase(obs) == "approach"][-1]
+    assert expert.following_path(last_approach).tolist() == [True, True]
+    on_path = [bool(expert.following_path(obs).all()) for obs in observations]
+    assert 0 < sum(on_path) < len(on_path)

@@ -187,6 +187,39 @@ class RecoveringLiftExpert(FeedbackLiftExpert):
             action[7 * k + 3 : 7 * k + 6] = turns[k] / max(1.0, float(np.abs(turns[k]).max()))
         return action
 
+    def following_path(self, obs: Any) -> np.ndarray:
+        """(2,) bool: whether each hand's commanded pose is on its approach path, inside the
+        funnel or within the back-off distance of it (the first two approach rules of the class
+        docstring), rather than far off it (turning at the far point or going round over the
+        object). Read in the ``"approach"`` phase; ``baselines.bc_lift --dagger-on-path true`` keeps
+        the DAgger labels of approach states where both hands follow their paths."""
+        s = self.state_vector(obs)
+        target_rot, goals, centres, rotations = (frame[0] for frame in goal_frames(s[None]))
+        return np.array(
+            [
+                self._path_rule(centres[k], rotations[k], goals[k], target_rot[k])[0] != "off"
+                for k in range(2)
+            ]
+        )
+
+    def _path_rule(
+        self, centre: np.ndarray, rotation: np.ndarray, goal: np.ndarray, goal_rot: np.ndarray
+    ) -> tuple[str, list[np.ndarray], float, float, float]:
+        """Which approach rule a hand's commanded pose falls under, ``"inside"`` (the funnel),
+        ``"back"`` (backing off) or ``"off"`` (the rest), with its path (3 points, m), its arc
+        length along the path (m), its distance to the path in funnel radii and the path length
+        still to go (m)."""
+        path = self._path(goal, goal_rot)
+        along, lateral, length = _along(path, centre)
+        left = length - along
+        angle = float(np.linalg.norm(rotation_vector(goal_rot @ rotation.T)))
+        radius = self.funnel(left)
+        if lateral <= radius and angle <= self.FUNNEL_ANGLE:
+            return "inside", path, along, lateral / radius, left
+        if lateral <= self.BACK_OFF_FACTOR * radius and along > 0.0:
+            return "back", path, along, lateral / radius, left
+        return "off", path, along, lateral / radius, left
+
     def _approach(
         self,
         centre: np.ndarray,
@@ -196,17 +229,14 @@ class RecoveringLiftExpert(FeedbackLiftExpert):
         corners: np.ndarray,
     ) -> np.ndarray:
         """Motion (6 action components) of one hand on its way to its goal (class docstring)."""
-        path = self._path(goal, goal_rot)
-        along, lateral, length = _along(path, centre)
-        left = length - along
-        angle = float(np.linalg.norm(rotation_vector(goal_rot @ rotation.T)))
-        radius = self.funnel(left)
-        if lateral <= radius and angle <= self.FUNNEL_ANGLE:
-            share = 1.0 - lateral / radius
+        rule, path, along, radii, left = self._path_rule(centre, rotation, goal, goal_rot)
+        if rule == "inside":
+            share = 1.0 - radii
             step = self.IN_STEP * min(1.0, left / self.SLOW_DISTANCE + 0.25) * share
             return _motion(centre, rotation, _point(path, along + step), goal_rot)
-        if lateral <= self.BACK_OFF_FACTOR * radius and along > 0.0:
+        if rule == "back":
             return _motion(centre, rotation, _point(path, along - self.BACK_STEP), goal_rot)
+        angle = float(np.linalg.norm(rotation_vector(goal_rot @ rotation.T)))
         start = path[0]
         track = self.TRACK_RADIUS + self.TRACK_SLOPE * max(float(centre[2] - start[2]), 0.0)
         if float(np.linalg.norm(centre[:2] - start[:2])) <= track:
