@@ -41,7 +41,7 @@ into another part of the object (the state holds only its bounding box).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -49,6 +49,24 @@ from dg16m_env.envs.lift.experts import FeedbackLiftExpert, _along, _motion, _po
 from dg16m_env.envs.lift.observations import STATE_SLICES, goal_frames
 from dg16m_env.envs.lift.spaces import ACTION_SIZE, MAX_ROTATION, MAX_TRANSLATION, rotation_vector
 from dg16m_env.envs.spaces import rotation_from_6d
+
+
+class _PathPlace(NamedTuple):
+    """Where a hand's commanded pose is against its approach path
+    (:meth:`RecoveringLiftExpert._path_place`)."""
+
+    rule: str
+    """``"inside"`` (the funnel), ``"back"`` (backing off) or ``"off"`` (the rest)."""
+    path: list[np.ndarray]
+    """The path far point -> pre-grasp -> grasp centre (3 points, world, m)."""
+    along: float
+    """Arc length of the nearest path point (m)."""
+    radii: float
+    """Distance to the path in funnel radii."""
+    left: float
+    """Path length still to go (m)."""
+    angle: float
+    """Rotation error against the goal rotation (rad)."""
 
 
 def _shrink(vectors: np.ndarray, deadband: float) -> np.ndarray:
@@ -197,28 +215,26 @@ class RecoveringLiftExpert(FeedbackLiftExpert):
         target_rot, goals, centres, rotations = (frame[0] for frame in goal_frames(s[None]))
         return np.array(
             [
-                self._path_rule(centres[k], rotations[k], goals[k], target_rot[k])[0] != "off"
+                self._path_place(centres[k], rotations[k], goals[k], target_rot[k]).rule != "off"
                 for k in range(2)
             ]
         )
 
-    def _path_rule(
+    def _path_place(
         self, centre: np.ndarray, rotation: np.ndarray, goal: np.ndarray, goal_rot: np.ndarray
-    ) -> tuple[str, list[np.ndarray], float, float, float]:
-        """Which approach rule a hand's commanded pose falls under, ``"inside"`` (the funnel),
-        ``"back"`` (backing off) or ``"off"`` (the rest), with its path (3 points, m), its arc
-        length along the path (m), its distance to the path in funnel radii and the path length
-        still to go (m)."""
+    ) -> _PathPlace:
+        """Which approach rule a hand's commanded pose falls under, and where it is on its path."""
         path = self._path(goal, goal_rot)
         along, lateral, length = _along(path, centre)
         left = length - along
         angle = float(np.linalg.norm(rotation_vector(goal_rot @ rotation.T)))
         radius = self.funnel(left)
+        rule = "off"
         if lateral <= radius and angle <= self.FUNNEL_ANGLE:
-            return "inside", path, along, lateral / radius, left
-        if lateral <= self.BACK_OFF_FACTOR * radius and along > 0.0:
-            return "back", path, along, lateral / radius, left
-        return "off", path, along, lateral / radius, left
+            rule = "inside"
+        elif lateral <= self.BACK_OFF_FACTOR * radius and along > 0.0:
+            rule = "back"
+        return _PathPlace(rule, path, along, lateral / radius, left, angle)
 
     def _approach(
         self,
@@ -229,14 +245,14 @@ class RecoveringLiftExpert(FeedbackLiftExpert):
         corners: np.ndarray,
     ) -> np.ndarray:
         """Motion (6 action components) of one hand on its way to its goal (class docstring)."""
-        rule, path, along, radii, left = self._path_rule(centre, rotation, goal, goal_rot)
-        if rule == "inside":
-            share = 1.0 - radii
-            step = self.IN_STEP * min(1.0, left / self.SLOW_DISTANCE + 0.25) * share
+        place = self._path_place(centre, rotation, goal, goal_rot)
+        path, along, angle = place.path, place.along, place.angle
+        if place.rule == "inside":
+            share = 1.0 - place.radii
+            step = self.IN_STEP * min(1.0, place.left / self.SLOW_DISTANCE + 0.25) * share
             return _motion(centre, rotation, _point(path, along + step), goal_rot)
-        if rule == "back":
+        if place.rule == "back":
             return _motion(centre, rotation, _point(path, along - self.BACK_STEP), goal_rot)
-        angle = float(np.linalg.norm(rotation_vector(goal_rot @ rotation.T)))
         start = path[0]
         track = self.TRACK_RADIUS + self.TRACK_SLOPE * max(float(centre[2] - start[2]), 0.0)
         if float(np.linalg.norm(centre[:2] - start[:2])) <= track:
