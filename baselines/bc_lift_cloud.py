@@ -7,8 +7,10 @@ Reads top to bottom (CleanRL style): one dataclass of arguments, then the run.
 1. Split the benchmark's objects: every third object held out for evaluation
    (:func:`dg16m_env.envs.objects.split_objects`).
 2. Collect the demonstrations online (the Minari demonstrations store no clouds): the teacher
-   :class:`dg16m_env.envs.lift.recovering_expert.RecoveringLiftExpert` (which reads the
-   privileged ``"state"``) runs ``teacher_episodes`` episodes on the training objects (reset
+   (``teacher``: :class:`dg16m_env.envs.lift.recovering_expert.RecoveringLiftExpert`, which
+   reads the privileged ``"state"``, or ``planning``,
+   :class:`dg16m_env.envs.lift.planning_expert.PlanningLiftExpert`, which also plans its
+   approach on the observation's cloud) runs ``teacher_episodes`` episodes on the training objects (reset
    seeds ``seed + i``); each step keeps the state (float32), a seeded subsample of
    ``n_points`` cloud points (float32) and the cloud's lowest and highest ``z``; the
    successful episodes' steps with the teacher's actions are the first training set.
@@ -67,7 +69,8 @@ from baselines.sb3_common import (
     split_objects,
     write_run,
 )
-from dg16m_env.envs.lift.recovering_expert import RecoveringLiftExpert
+from dg16m_env.envs.lift.expert_registry import make_lift_expert
+from dg16m_env.envs.lift.experts import FeedbackLiftExpert
 from dg16m_env.evaluators import EvaluationResult, load_benchmark_ref
 
 ENV_ID = "dg16m_env/DualGraspLift-v2"
@@ -78,6 +81,8 @@ ENV_ID = "dg16m_env/DualGraspLift-v2"
 class Args:
     seed: int = 0
     """seed of the teacher episodes (reset seeds seed + i), the cloud subsamples, the network, the minibatches and the random baseline"""
+    teacher: str = "recovering"
+    """the teacher of the demonstrations and the DAgger labels: recovering or planning"""
     teacher_episodes: int = 500
     """teacher episodes collected on the training objects (the successful ones are kept)"""
     episode_steps: int = 0
@@ -153,7 +158,7 @@ def make_env(object_ids: list[str], episode_steps: int) -> Any:
 
 def rollouts(
     env: Any,
-    teacher: RecoveringLiftExpert,
+    teacher: FeedbackLiftExpert,
     policy: LiftCloudPolicy | None,
     seeds: range,
     args: Args,
@@ -272,8 +277,10 @@ def main() -> None:
         raise SystemExit(
             f"--dagger-phases: expected 'all' or phases among {PHASES}, found {args.dagger_phases!r}"
         )
+    if args.teacher not in ("recovering", "planning"):
+        raise SystemExit(f"--teacher: expected recovering or planning, found {args.teacher!r}")
     train_ids, test_ids = output_and_split(args.out)
-    teacher = RecoveringLiftExpert()
+    teacher = make_lift_expert(args.teacher)
     rng = np.random.default_rng(args.seed)
     env = make_env(train_ids, args.episode_steps)
     seconds = {"collection": 0.0, "training": 0.0, "dagger_rollouts": 0.0, "evaluation": 0.0}
@@ -350,7 +357,7 @@ def main() -> None:
         env_id=ENV_ID,
         obs_mode="pointcloud",
         teacher={
-            "name": "RecoveringLiftExpert",
+            "name": type(teacher).__name__,
             "episodes": args.teacher_episodes,
             "success_rate": teacher_rate,
         },

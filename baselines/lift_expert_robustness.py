@@ -4,7 +4,9 @@ Reads top to bottom (CleanRL style): one dataclass of arguments, then the run.
 
 Each expert runs ``episodes`` seeded episodes (reset seeds ``seed + i``, the held-out seeds of
 the Lift baselines) of ``dg16m_env/DualGraspLift-v2`` on the benchmark's held-out objects
-(:func:`dg16m_env.envs.objects.split_objects`), once clean and once perturbed: on each step,
+(:func:`dg16m_env.envs.objects.split_objects`), in the observation mode the expert needs (its
+``OBS_MODE``: ``"pointcloud"`` for the planning expert, which plans its approach on the cloud;
+``"state"`` for the others), once clean and once perturbed: on each step,
 with probability ``noise_probability``, N(0, ``noise_std``) is added to every action component
 (action units; the sum clipped to [-1, 1]) while the expert's phase is one of
 ``noise_phases``. The perturbation's generator is seeded per episode (``seed + i``), so both
@@ -172,25 +174,41 @@ def main(args: Args | None = None) -> dict[str, Any]:
 
     ref = load_benchmark_ref(None if args.benchmark == "procedural" else args.benchmark)
     held_out = split_objects(list(ref.object_ids))[1]
-    env = gym.make("dg16m_env/DualGraspLift-v2", benchmark=ref, object_ids=held_out)
+    envs: dict[str, Any] = {}  # one per observation mode the experts need
     settings = ([("clean", 0.0)] if args.clean else []) + [("perturbed", args.noise_std)]
     started = time.monotonic()
     rows: list[dict[str, Any]] = []
     for name in experts:
         expert = make_lift_expert(name)
+        obs_mode = expert.OBS_MODE
+        if obs_mode not in envs:
+            envs[obs_mode] = gym.make(
+                "dg16m_env/DualGraspLift-v2",
+                benchmark=ref,
+                object_ids=held_out,
+                obs_mode=obs_mode,
+            )
+        env = envs[obs_mode]
         for setting, std in settings:
             seeds = range(args.seed, args.seed + args.episodes)
             episodes = [
                 run_episode(env, expert, seed, std, args.noise_probability, phases)
                 for seed in progress_bar(seeds, desc=f"{name} {setting}")
             ]
-            row = {"expert": name, "setting": setting, **summarise(episodes), "episodes": episodes}
+            row = {
+                "expert": name,
+                "obs_mode": obs_mode,
+                "setting": setting,
+                **summarise(episodes),
+                "episodes": episodes,
+            }
             rows.append(row)
             print(
                 f"{name} {setting}: {row['successes']}/{args.episodes} = {row['rate']:.1%} "
                 f"[{row['ci_low']:.1%}, {row['ci_high']:.1%}]; failures {row['failures']}"
             )
-    env.close()
+    for env in envs.values():
+        env.close()
     results: dict[str, Any] = {
         "env_id": "dg16m_env/DualGraspLift-v2",
         "benchmark": args.benchmark,

@@ -163,6 +163,8 @@ def test_tiny_end_to_end_run(tmp_path: Path, observation: dict[str, np.ndarray])
             "120",
             "--eval-episodes",
             "1",
+            "--teacher",
+            "planning",
             "--out",
             str(out),
         ],
@@ -175,6 +177,7 @@ def test_tiny_end_to_end_run(tmp_path: Path, observation: dict[str, np.ndarray])
     for result in results["results"].values():
         assert result["metrics"]["success_rate"]["episodes"] == 1
     assert [r["round"] for r in results["rounds"]] == [0, 1]
+    assert results["teacher"]["name"] == "PlanningLiftExpert"
     assert set(results["seconds"]) >= {"collection", "training", "evaluation"}
     assert (out / "success_rates.png").stat().st_size > 10_000
     policy = LiftCloudPolicy.load(out / "policy.pt")
@@ -183,20 +186,21 @@ def test_tiny_end_to_end_run(tmp_path: Path, observation: dict[str, np.ndarray])
     np.testing.assert_array_equal(LiftCloudPolicy.load(out / "policy.pt")(observation), action)
 
 
-def test_wrong_phases_are_refused(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("option", "value", "message"),
+    [
+        ("--dagger-phases", "grasp", "expected 'all' or phases among"),
+        ("--teacher", "oracle", "--teacher: expected recovering or planning, found 'oracle'"),
+    ],
+)
+def test_wrong_arguments_are_refused(tmp_path: Path, option: str, value: str, message: str) -> None:
+    out = tmp_path / "run"
     result = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "baselines.bc_lift_cloud",
-            "--dagger-phases",
-            "grasp",
-            "--out",
-            str(tmp_path / "run"),
-        ],
+        [sys.executable, "-m", "baselines.bc_lift_cloud", option, value, "--out", str(out)],
         capture_output=True,
         text=True,
         timeout=120,
     )
     assert result.returncode != 0
-    assert "expected 'all' or phases among" in result.stderr
+    assert message in result.stderr
+    assert not out.exists()

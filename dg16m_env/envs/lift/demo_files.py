@@ -86,8 +86,10 @@ DEMO_OBS_MODES = ("state", "state_dict")
 """Observation modes the collector takes (``"pointcloud"`` is not stored)."""
 
 DEMO_EXPERTS = ("feedback", "recovering")
-"""The experts the collector runs (the names of
-:data:`dg16m_env.envs.lift.expert_registry.LIFT_EXPERTS`; the dataset records the class)."""
+"""The experts the collector runs: the names of
+:data:`dg16m_env.envs.lift.expert_registry.LIFT_EXPERTS` whose ``OBS_MODE`` is one of
+:data:`DEMO_OBS_MODES` (the planning expert plans on the ``"pointcloud"`` observation, which is
+not stored); the dataset records the class."""
 
 OBJECT_SETS = ("train", "held-out", "all")
 """Named object selections (:func:`select_objects`); else a list of object ids."""

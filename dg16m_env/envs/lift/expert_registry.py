@@ -5,15 +5,20 @@
 from __future__ import annotations
 
 from dg16m_env.envs.lift.experts import FeedbackLiftExpert
+from dg16m_env.envs.lift.planning_expert import PlanningLiftExpert
 from dg16m_env.envs.lift.recovering_expert import RecoveringLiftExpert
 
 LIFT_EXPERTS: dict[str, type[FeedbackLiftExpert]] = {
     "feedback": FeedbackLiftExpert,
     "recovering": RecoveringLiftExpert,
+    "planning": PlanningLiftExpert,
 }
 """Name -> class of the experts of ``DualGraspLift-v1``..``-v3``:
-:class:`~dg16m_env.envs.lift.experts.FeedbackLiftExpert` and
-:class:`~dg16m_env.envs.lift.recovering_expert.RecoveringLiftExpert`."""
+:class:`~dg16m_env.envs.lift.experts.FeedbackLiftExpert`,
+:class:`~dg16m_env.envs.lift.recovering_expert.RecoveringLiftExpert` and
+:class:`~dg16m_env.envs.lift.planning_expert.PlanningLiftExpert` (which plans on the
+``"pointcloud"`` observation's cloud: its ``OBS_MODE``; on other observations it is the
+recovering expert)."""
 
 
 def make_lift_expert(

@@ -312,6 +312,8 @@ class FeedbackLiftExpert:
             lifted).
     """
 
+    OBS_MODE = "state"
+    """The observation mode the expert needs (it reads only the state: any mode serves)."""
     FAR_DISTANCE = 0.25
     """Distance of the far point back along the approach axis from the grasp centre (m)."""
     PREGRASP_DISTANCE = 0.09
@@ -438,13 +440,18 @@ class FeedbackLiftExpert:
         rotations: np.ndarray,
         goals: np.ndarray,
         goal_rots: np.ndarray,
+        paths: list[list[np.ndarray]] | None = None,
     ) -> np.ndarray:
-        """The ``"approach"`` action: each hand on its way (:meth:`_approach`), fingers open."""
+        """The ``"approach"`` action: each hand on its way (:meth:`_approach`) along its path
+        (``paths``: far point -> pre-grasp -> grasp centre per hand; :meth:`_path` of the goals
+        when ``None``), fingers open."""
+        if paths is None:
+            paths = [self._path(goals[k], goal_rots[k]) for k in range(2)]
         action = np.zeros(ACTION_SIZE)
         corners = self._box_corners(part)
         for k in range(2):
             action[7 * k : 7 * k + 6] = self._approach(
-                centres[k], rotations[k], goals[k], goal_rots[k], corners
+                centres[k], rotations[k], goals[k], goal_rots[k], corners, paths[k]
             )
         action[[6, 13]] = -1.0
         return np.clip(action, -1.0, 1.0).astype(np.float32)
@@ -505,9 +512,10 @@ class FeedbackLiftExpert:
         goal: np.ndarray,
         goal_rot: np.ndarray,
         corners: np.ndarray,
+        path: list[np.ndarray],
     ) -> np.ndarray:
-        """Motion (6 action components) of one hand on its way to its goal (class docstring)."""
-        path = self._path(goal, goal_rot)
+        """Motion (6 action components) of one hand on its way to its goal along ``path`` (class
+        docstring)."""
         along, lateral, length = _along(path, centre)
         angle = float(np.linalg.norm(rotation_vector(goal_rot @ rotation.T)))
         if lateral <= self.CORRIDOR_RADIUS and angle <= self.CORRIDOR_ANGLE:

@@ -36,7 +36,9 @@ action on 30 % of the steps 34.5 % [28.3, 41.3] (feedback expert 3.0 %); real fu
 episodes, clean 70.0 % [60.4, 78.1] (72.0 %), perturbed 21.0 % [14.2, 30.0] (1.0 %). Perturbed
 episodes fail in the lift: a perturbed step moves the two stiff hands about 1.4 cm relative to
 each other and the object slips in the fingers; clean ones fail where the approach path runs
-into another part of the object (the state holds only its bounding box).
+into another part of the object (the state holds only its bounding box;
+:class:`~dg16m_env.envs.lift.planning_expert.PlanningLiftExpert` plans the path on the
+``"pointcloud"`` observation's cloud instead).
 """
 
 from __future__ import annotations
@@ -182,7 +184,21 @@ class RecoveringLiftExpert(FeedbackLiftExpert):
             closing and (empty.any() or (misplaced and contacts.all()))
         ):
             return "close", self._close_action(centres, rotations, goals, target_rot)
-        return "approach", self._approach_action(part, centres, rotations, goals, target_rot)
+        paths = self.approach_paths(obs, part, goals, target_rot)
+        return "approach", self._approach_action(part, centres, rotations, goals, target_rot, paths)
+
+    def approach_paths(
+        self,
+        obs: Any,
+        part: dict[str, np.ndarray],
+        goals: np.ndarray,
+        goal_rots: np.ndarray,
+    ) -> list[list[np.ndarray]]:
+        """Each hand's approach path, far point -> pre-grasp -> grasp centre (2 lists of 3 points,
+        world, m): ``FAR_DISTANCE`` and ``PREGRASP_DISTANCE`` back along the goal's approach axis,
+        raised above the table (the state holds the object's bounding box only, so the path does
+        not depend on ``obs`` beyond the goals; a subclass may plan it on the observation)."""
+        return [self._path(goals[k], goal_rots[k]) for k in range(2)]
 
     def _hold(
         self, part: dict[str, np.ndarray], centres: np.ndarray, rotations: np.ndarray
@@ -212,19 +228,29 @@ class RecoveringLiftExpert(FeedbackLiftExpert):
         object). Read in the ``"approach"`` phase; ``baselines.bc_lift --dagger-on-path true`` keeps
         the DAgger labels of approach states where both hands follow their paths."""
         s = self.state_vector(obs)
+        part = {name: s[sl] for name, sl in STATE_SLICES.items()}
         target_rot, goals, centres, rotations = (frame[0] for frame in goal_frames(s[None]))
+        paths = self.approach_paths(obs, part, goals, target_rot)
         return np.array(
             [
-                self._path_place(centres[k], rotations[k], goals[k], target_rot[k]).rule != "off"
+                self._path_place(
+                    centres[k], rotations[k], goal_rot=target_rot[k], path=paths[k]
+                ).rule
+                != "off"
                 for k in range(2)
             ]
         )
 
     def _path_place(
-        self, centre: np.ndarray, rotation: np.ndarray, goal: np.ndarray, goal_rot: np.ndarray
+        self,
+        centre: np.ndarray,
+        rotation: np.ndarray,
+        *,
+        goal_rot: np.ndarray,
+        path: list[np.ndarray],
     ) -> _PathPlace:
-        """Which approach rule a hand's commanded pose falls under, and where it is on its path."""
-        path = self._path(goal, goal_rot)
+        """Which approach rule a hand's commanded pose falls under, and where it is on ``path``
+        (far point -> pre-grasp -> grasp centre)."""
         along, lateral, length = _along(path, centre)
         left = length - along
         angle = float(np.linalg.norm(rotation_vector(goal_rot @ rotation.T)))
@@ -243,9 +269,11 @@ class RecoveringLiftExpert(FeedbackLiftExpert):
         goal: np.ndarray,
         goal_rot: np.ndarray,
         corners: np.ndarray,
+        path: list[np.ndarray],
     ) -> np.ndarray:
-        """Motion (6 action components) of one hand on its way to its goal (class docstring)."""
-        place = self._path_place(centre, rotation, goal, goal_rot)
+        """Motion (6 action components) of one hand on its way to its goal along ``path`` (class
+        docstring)."""
+        place = self._path_place(centre, rotation, goal_rot=goal_rot, path=path)
         path, along, angle = place.path, place.along, place.angle
         if place.rule == "inside":
             share = 1.0 - place.radii
