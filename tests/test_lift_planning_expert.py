@@ -25,7 +25,6 @@ from dg16m_env.envs.lift.planning_expert import (
     segment_hits,
 )
 from dg16m_env.envs.lift.recovering_expert import RecoveringLiftExpert
-from dg16m_env.envs.lift.scenes import HAND_REACH
 
 LIFT_V2 = "dg16m_env/DualGraspLift-v2"
 DEPTH = get_gripper(PANDA).contact_depth
@@ -149,7 +148,7 @@ def test_detours_where_the_cloud_blocks_the_straight_path() -> None:
     planned = planning.approach_paths(obs, part, goals, target_rot)
     straight = recovering.approach_paths(obs, part, goals, target_rot)
     cloud = observed_cloud(obs)
-    crossing = float(planning._box_corners(part)[:, 2].max()) + HAND_REACH + planning.CLEARANCE
+    crossing = planning._safe_height(planning._box_corners(part))
     changed = [k for k in range(2) if not np.allclose(np.stack(planned[k]), np.stack(straight[k]))]
     assert changed, "expected a hand whose straight path the cloud blocks"
     for k in changed:

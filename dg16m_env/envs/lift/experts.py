@@ -488,6 +488,11 @@ class FeedbackLiftExpert:
             point[2] = max(point[2], floor)
         return path
 
+    def _safe_height(self, corners: np.ndarray) -> float:
+        """Grasp-centre height (m) at which a hand crosses over the object: the top of its
+        (8, 3) box ``corners`` + the hand's reach + ``CLEARANCE``."""
+        return float(corners[:, 2].max()) + HAND_REACH + self.CLEARANCE
+
     def _over_the_object(
         self,
         centre: np.ndarray,
@@ -499,8 +504,7 @@ class FeedbackLiftExpert:
         """Motion of a hand far from its path: up to the safe height (the box top + the hand's
         reach + ``CLEARANCE``, or the far point ``start`` if higher), then across at that height
         to above the far point, turning to ``goal_rot`` on the way."""
-        safe = float(corners[:, 2].max()) + HAND_REACH + self.CLEARANCE
-        high = max(safe, float(start[2]))
+        high = max(self._safe_height(corners), float(start[2]))
         if centre[2] < high - self.HEIGHT_TOLERANCE:
             return _motion(centre, rotation, np.array([centre[0], centre[1], high]), None)
         return _motion(centre, rotation, np.array([start[0], start[1], centre[2]]), goal_rot)

@@ -44,7 +44,6 @@ import numpy as np
 
 from dataset_gen.grasps.gripper import PANDA, GripperModel, get_gripper
 from dg16m_env.envs.lift.recovering_expert import RecoveringLiftExpert
-from dg16m_env.envs.lift.scenes import HAND_REACH
 
 
 def open_hand_boxes(gripper: str | GripperModel = PANDA) -> np.ndarray:
@@ -192,7 +191,7 @@ class PlanningLiftExpert(RecoveringLiftExpert):
         cloud = observed_cloud(obs)
         if cloud is None or len(cloud) == 0:
             return default
-        crossing = float(self._box_corners(part)[:, 2].max()) + HAND_REACH + self.CLEARANCE
+        crossing = self._safe_height(self._box_corners(part))
         return [
             self._free_path(cloud, goals[k], goal_rots[k], default[k], crossing) for k in range(2)
         ]
@@ -214,9 +213,11 @@ class PlanningLiftExpert(RecoveringLiftExpert):
         length = self.FAR_DISTANCE - self.PREGRASP_DISTANCE
         for pregrasp_distance in (self.PREGRASP_DISTANCE, self.SHORT_PREGRASP_DISTANCE):
             pregrasp = goal - pregrasp_distance * approach
+            if pregrasp[2] < floor:
+                continue
             for direction, _ in approach_candidates(goal_rot, self.TURNS):
                 far = pregrasp + length * direction
-                if far[2] < floor or pregrasp[2] < floor:
+                if far[2] < floor:
                     continue
                 path = [far, pregrasp.copy(), goal.copy()]
                 if self._is_free(cloud, path, goal_rot, crossing):
