@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from baselines.cloud_hand import DepthViews, hand_hits_cloud, hands_in_seen_free_space
-from baselines.cloud_inputs import Cloud, CloudSamplerConfig, _neighbours
+from baselines.cloud_inputs import Cloud, CloudSamplerConfig, _expand_groups, _neighbours
 from dataset_gen.grasps.gripper import GripperModel, get_gripper
 from dataset_gen.grasps.sampling import SingleArmGrasps, _tangent_basis
 
@@ -33,7 +33,17 @@ def _grouped_extremes(
     size = np.bincount(group, minlength=n_groups)
     top = np.full(n_groups, -1, dtype=np.int64)
     bottom = np.full(n_groups, -1, dtype=np.int64)
-    if len(group):
+    if len(group) and bool(np.all(group[1:] >= group[:-1])):
+        # Groups in runs (as :func:`enclose` makes them): per run its extremes, then the last
+        # entry at the largest value and the first at the smallest, as the stable sort below.
+        starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+        entry = np.arange(len(group), dtype=np.int64)
+        run = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(group)]))
+        at_top = value == np.maximum.reduceat(value, starts)[run]
+        at_bottom = value == np.minimum.reduceat(value, starts)[run]
+        top[group[starts]] = np.maximum.reduceat(np.where(at_top, entry, -1), starts)
+        bottom[group[starts]] = np.minimum.reduceat(np.where(at_bottom, entry, len(group)), starts)
+    elif len(group):
         order = np.lexsort((value, group))  # by group, then value ascending
         g = group[order]
         first = np.flatnonzero(np.r_[True, g[1:] != g[:-1]])
@@ -73,6 +83,44 @@ def enclosing_poses(
     return poses
 
 
+CYLINDER_MARGIN = 1e-6
+"""Added to the cylinder of :func:`_held_candidates` (m): far above rounding, far below a
+cloud's spacing."""
+
+
+def _held_candidates(
+    cloud: Cloud,
+    poses: np.ndarray,
+    model: GripperModel,
+    half_x: float,
+    half_z: float,
+    radius: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Flat entries that hold every point :func:`enclose` may find between a pose's fingers:
+    ``(pose row (E,), point index (E,), point - pose origin (E, 3))``, grouped by pose, the
+    points of a pose ascending.
+
+    Hands that share their origin and approach axis (the enclosing sampler's closing axes about
+    one approach) share one search: the cloud points within ``radius`` of the held box's centre
+    that lie in the cylinder about the approach axis holding the box at every turn about it
+    (``palm_depth <= y <= finger_tip``, distance from the axis at most ``|(half_x, half_z)|``);
+    each hand then gets its group's entries."""
+    mid = 0.5 * (model.palm_depth + model.finger_tip)
+    key = np.concatenate([poses[:, :3, 3], poses[:, :3, 1]], axis=1)
+    axes, group_of = np.unique(key, axis=0, return_inverse=True)
+    origin, approach = axes[:, :3], axes[:, 3:]
+    group, point = _neighbours(cloud.tree, origin + mid * approach, radius)
+    offset = cloud.points[point] - origin[group]
+    along = np.einsum("ek,ek->e", offset, approach[group])
+    across = np.einsum("ek,ek->e", offset, offset) - along**2
+    near = (along >= model.palm_depth - CYLINDER_MARGIN) & (
+        along <= model.finger_tip + CYLINDER_MARGIN
+    )
+    near &= across <= (math.hypot(half_x, half_z) + CYLINDER_MARGIN) ** 2
+    pose, entry = _expand_groups(group[near], len(axes), group_of.reshape(-1))
+    return pose, point[near][entry], offset[near][entry]
+
+
 def enclose(
     cloud: Cloud, poses: np.ndarray, model: GripperModel, *, pad_margin: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -94,11 +142,11 @@ def enclose(
     n = len(poses)
     half_x = model.max_opening / 2.0
     half_z = model.finger_width / 2.0 - pad_margin
-    mid = 0.5 * (model.palm_depth + model.finger_tip)
     radius = math.sqrt(half_x**2 + (0.5 * (model.finger_tip - model.palm_depth)) ** 2 + half_z**2)
-    centres = poses[:, :3, 3] + mid * poses[:, :3, 1]
-    pose, point = _neighbours(cloud.tree, centres, radius)
-    local = np.einsum("eki,ek->ei", poses[pose, :3, :3], cloud.points[point] - poses[pose, :3, 3])
+    pose, point, offset = _held_candidates(cloud, poses, model, half_x, half_z, radius)
+    # the rotations repeated per run of a pose's entries, not gathered entry by entry
+    rotation = np.repeat(poses[:, :3, :3], np.bincount(pose, minlength=n), axis=0)
+    local = np.einsum("eki,ek->ei", rotation, offset)
     held = (
         (local[:, 1] >= model.palm_depth)
         & (local[:, 1] <= model.finger_tip)

@@ -144,6 +144,39 @@ class ContactPairs:
         return int(self.index.shape[0])
 
 
+PARTNER_BALL_MARGIN = 1e-6
+"""Added to the radius of :func:`partner_ball` (m): far above rounding, far below a cloud's
+spacing."""
+
+
+def partner_ball(
+    seeds: np.ndarray, normals: np.ndarray, cos_cone: float, max_width: float
+) -> tuple[np.ndarray, float]:
+    """The smallest ball about each seed's inward normal that holds every possible partner.
+
+    A partner ``p1`` of the seed ``p0`` (outward normal ``n0``) has ``d = p1 - p0`` with
+    ``|d| <= W`` (``max_width``) and ``d . (-n0) >= c |d|`` (``cos_cone``): the part of the ball
+    of radius ``W`` about ``p0`` inside the friction cone about ``-n0``. Its farthest points from
+    ``p0 - h n0`` are the apex (at ``h``) and the cone's rim on the sphere (at
+    ``sqrt(W^2 + h^2 - 2 h W c)``); ``h = W / (2c)`` makes them equal, so every partner lies
+    within ``W / (2c)`` of ``p0 - W / (2c) n0``: with the paper's ``mu = 0.4`` a ball of 0.54
+    ``W`` (0.16 of the volume), which is what makes the search fast where the whole cloud lies
+    within ``W`` of every seed (a small object). For ``c <= 1/2`` (a cone of 60 degrees or more)
+    the ball about the seed itself is as small, and is returned.
+
+    Args:
+        seeds: (S, 3) seed points (m). normals: (S, 3) their unit outward normals.
+        cos_cone: the cosine of the cone's half-angle. max_width: ``W`` (m).
+
+    Returns:
+        ``(centres (S, 3), radius)`` (m), the radius grown by :data:`PARTNER_BALL_MARGIN`.
+    """
+    if cos_cone <= 0.5:
+        return np.asarray(seeds, dtype=np.float64), max_width + PARTNER_BALL_MARGIN
+    shift = max_width / (2.0 * cos_cone)
+    return seeds - shift * normals, shift + PARTNER_BALL_MARGIN
+
+
 def cloud_contact_pairs(
     cloud: Cloud,
     seeds: np.ndarray,
@@ -154,9 +187,10 @@ def cloud_contact_pairs(
 ) -> ContactPairs:
     """Each seed's most antipodal partner within both friction cones, duplicates dropped.
 
-    The partners of a seed are searched among the cloud points within ``max_width`` of it (a
-    k-d tree, :class:`scipy.spatial.cKDTree`); the cone tests run on the flat list of
-    (seed, neighbour) entries.
+    The partners of a seed are searched among the cloud points in the ball of
+    :func:`partner_ball` (a k-d tree, :class:`scipy.spatial.cKDTree`), which holds every point
+    within ``max_width`` of the seed and inside its friction cone; the distance and cone tests
+    run on the flat list of (seed, neighbour) entries.
 
     Args:
         cloud: the cloud.
@@ -171,7 +205,8 @@ def cloud_contact_pairs(
     seeds = np.asarray(seeds, dtype=np.int64)
     cos_cone = math.cos(math.atan(mu)) - _COS_EPS
     pts, nrm = cloud.points, cloud.normals
-    row, j = _neighbours(cloud.tree, pts[seeds], max_width)
+    centre, radius = partner_ball(pts[seeds], nrm[seeds], cos_cone, max_width)
+    row, j = _neighbours(cloud.tree, centre, radius)
     i = seeds[row]
     d = pts[j] - pts[i]
     dist = np.linalg.norm(d, axis=1)
@@ -380,6 +415,7 @@ __all__ = [
     "MAX_BACK_FACING",
     "MIN_POINTS",
     "NORMAL_TOLERANCE",
+    "PARTNER_BALL_MARGIN",
     "Cloud",
     "CloudError",
     "CloudSamplerConfig",
@@ -399,6 +435,7 @@ __all__ = [
     "hand_volume_points",
     "hands_in_seen_free_space",
     "paired_candidates",
+    "partner_ball",
     "sample_cloud_grasps",
     "sample_enclosing_grasps",
 ]

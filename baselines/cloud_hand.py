@@ -1,7 +1,7 @@
 """The Panda hand against what was observed of an object, for the cloud grasp sampler
 (:mod:`baselines.cloud_grasps`; the steps named below are those of its docstring): hand poses that
 put the fingers on two contacts (:func:`hand_poses`), whether an open hand has a cloud point inside
-its palm or finger volumes (:func:`hand_hits_cloud`, within :func:`hand_reach` of its grasp centre)
+its palm or finger volumes (:func:`hand_hits_cloud`, within the two balls of :func:`hand_balls`)
 or a contact off its pad, and what depth cameras saw (:class:`DepthViews`), to test whether every
 point of an open hand (:func:`hand_volume_points`) lies in space a camera saw empty
 (:func:`hands_in_seen_free_space`). Units: metres; poses are the dg16m grasp frame.
@@ -77,7 +77,7 @@ def hand_hits_cloud(
 ) -> np.ndarray:
     """Whether each hand pose has a cloud point inside its palm or finger volumes (step 3).
 
-    Only the points within :func:`hand_reach` of each pose's grasp centre are tested (a k-d
+    Only the points within the two balls of :func:`hand_balls` of each pose are tested (a k-d
     tree), on a flat list of (pose, point) entries, in passes with the same answer as one:
     first against every n-th point (about 64, then about 512 points: :data:`COARSE_POINTS`),
     then only the poses that are still clear against the whole cloud. On a small object nearly
@@ -138,8 +138,7 @@ def _hits(
     palm_hi = np.asarray(palm.center) + np.asarray(palm.half_extents) + grow
     outer = model.max_opening / 2.0 + model.finger_thickness + clearance
     half_z = model.finger_width / 2.0 + clearance
-    centres = poses[:, :3, 3] + model.contact_depth * poses[:, :3, 1]
-    pose, point = _neighbours(tree, centres, hand_reach(model) + 2.0 * max(clearance, 0.0))
+    pose, point = _hand_entries(tree, poses, model, clearance)
     R, t = poses[pose, :3, :3], poses[pose, :3, 3]
     local = np.einsum("eki,ek->ei", R, pts[point] - t)
     gx, gy, gz = local[:, 0], local[:, 1], local[:, 2]
@@ -157,6 +156,58 @@ def _hits(
     finger1 = (gx < contact_x[pose, 1] - tolerance) & (gx >= -outer)
     hit = in_palm | (foot & (finger0 | finger1))
     return np.bincount(pose[hit], minlength=len(poses)) > 0
+
+
+HAND_BALL_MARGIN = 1e-6
+"""Added to the radii of :func:`hand_balls` (m): far above rounding, far below a cloud's
+spacing."""
+
+
+def hand_balls(model: GripperModel, clearance: float) -> tuple[np.ndarray, float]:
+    """Two balls that hold everything :func:`hand_hits_cloud` tests: ``(centres (2, 3)`` in the
+    grasp frame, ``radius)`` (m).
+
+    The tested volumes (the palm box and the fingers' footprints out to the open fingers, each
+    grown by ``clearance``) lie in one box; its halves at ``x >= 0`` and ``x <= 0`` are each
+    held by the ball about its centre. The palm makes the hand a flat slab (20.5 x 11.2 x 6.3
+    cm for the Panda), so the two balls hold about a third of the volume of one ball about the
+    grasp centre (:func:`hand_reach`): a third of the (hand, point) entries on a small object
+    whose whole cloud lies within reach of every hand."""
+    grow = max(clearance, 0.0)
+    palm = model.palm_box()
+    lo = np.minimum(
+        np.asarray(palm.center) - np.asarray(palm.half_extents),
+        [
+            -model.max_opening / 2.0 - model.finger_thickness,
+            model.palm_depth,
+            -model.finger_width / 2.0,
+        ],
+    )
+    hi = np.maximum(
+        np.asarray(palm.center) + np.asarray(palm.half_extents),
+        [
+            model.max_opening / 2.0 + model.finger_thickness,
+            model.finger_tip,
+            model.finger_width / 2.0,
+        ],
+    )
+    lo, hi = lo - grow, hi + grow
+    centres = np.array([[lo[0] / 2.0, 0.0, 0.0], [hi[0] / 2.0, 0.0, 0.0]])
+    centres[:, 1:] = 0.5 * (lo[1:] + hi[1:])
+    half = np.array([max(-lo[0], hi[0]) / 2.0, *(0.5 * (hi[1:] - lo[1:]))])
+    return centres, float(np.linalg.norm(half)) + HAND_BALL_MARGIN
+
+
+def _hand_entries(
+    tree: cKDTree, poses: np.ndarray, model: GripperModel, clearance: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Flat (pose row, point index) entries holding every tree point in the volumes
+    :func:`_hits` tests of each pose (a point may come twice: the two balls of
+    :func:`hand_balls` overlap)."""
+    centres, radius = hand_balls(model, clearance)
+    world = np.einsum("nij,bj->bni", poses[:, :3, :3], centres) + poses[None, :, :3, 3]
+    rows, points = _neighbours(tree, world.reshape(-1, 3), radius)
+    return rows % len(poses), points
 
 
 def _on_pads(local_contacts: np.ndarray, model: GripperModel, margin: float) -> np.ndarray:
@@ -270,7 +321,9 @@ def hands_in_seen_free_space(
 
 
 __all__ = [
+    "HAND_BALL_MARGIN",
     "DepthViews",
+    "hand_balls",
     "hand_hits_cloud",
     "hand_poses",
     "hand_reach",

@@ -130,7 +130,37 @@ def _spacing(points: np.ndarray) -> float:
 
 def _neighbours(tree: cKDTree, queries: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Flat (query row, point index) arrays of every tree point within ``radius`` (m) of each
-    of ``queries`` (Q, 3), grouped by query row."""
+    of ``queries`` (Q, 3), grouped by query row, each group's indices ascending.
+
+    Equal queries are searched once (the enclosing sampler's closing axes share their hand's
+    centre): the same arrays as one search per row."""
+    queries = np.asarray(queries, dtype=np.float64).reshape(-1, 3)
+    unique, inverse = np.unique(queries, axis=0, return_inverse=True)
+    if len(unique) == len(queries):
+        return _search(tree, queries, radius)
+    rows, points = _search(tree, unique, radius)
+    row, entry = _expand_groups(rows, len(unique), inverse.reshape(-1))
+    return row, points[entry]
+
+
+def _expand_groups(
+    groups: np.ndarray, n_groups: int, group_of: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Flat entries grouped by ``groups`` (E,) (runs, ascending, in ``[0, n_groups)``) handed
+    to rows: row ``r`` gets the entries of group ``group_of[r]`` (``group_of`` (R,)), in their
+    order. Returns ``(row, entry)``, grouped by row: each entry's row and its index into the
+    flat entries."""
+    sizes = np.bincount(groups, minlength=n_groups)
+    starts = np.r_[0, np.cumsum(sizes)[:-1]]
+    counts = sizes[group_of]
+    row = np.repeat(np.arange(len(group_of), dtype=np.int64), counts)
+    offsets = np.r_[0, np.cumsum(counts)[:-1]]
+    within = np.arange(int(counts.sum()), dtype=np.int64) - np.repeat(offsets, counts)
+    return row, np.repeat(starts[group_of], counts) + within
+
+
+def _search(tree: cKDTree, queries: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_neighbours` with one tree search per query row."""
     lists = tree.query_ball_point(queries, r=radius, return_sorted=True)
     sizes = np.fromiter((len(x) for x in lists), dtype=np.int64, count=len(lists))
     rows = np.repeat(np.arange(len(lists), dtype=np.int64), sizes)
