@@ -15,7 +15,8 @@ import math
 import numpy as np
 
 from baselines.cloud_hand import DepthViews, hand_hits_cloud, hands_in_seen_free_space
-from baselines.cloud_inputs import Cloud, CloudSamplerConfig, _expand_groups, _neighbours
+from baselines.cloud_inputs import Cloud, CloudSamplerConfig
+from baselines.cloud_kernels import held_extremes
 from dataset_gen.grasps.gripper import GripperModel, get_gripper
 from dataset_gen.grasps.sampling import SingleArmGrasps, _tangent_basis
 
@@ -23,34 +24,6 @@ MAX_BACK_FACING = 0.5
 """An enclosing grasp's contact is refused when its normal points back towards the other finger
 by more than this cosine (``n0 . x < -MAX_BACK_FACING`` for finger 0 at ``+x``): the part then
 goes on, unseen, past where the finger would close."""
-
-
-def _grouped_extremes(
-    group: np.ndarray, value: np.ndarray, n_groups: int
-) -> tuple[np.ndarray, ...]:
-    """Per group ``g`` of the entries (``group`` (E,) int, ``value`` (E,) float): the entry
-    index of the largest and of the smallest value (-1 for an empty group) and the group size."""
-    size = np.bincount(group, minlength=n_groups)
-    top = np.full(n_groups, -1, dtype=np.int64)
-    bottom = np.full(n_groups, -1, dtype=np.int64)
-    if len(group) and bool(np.all(group[1:] >= group[:-1])):
-        # Groups in runs (as :func:`enclose` makes them): per run its extremes, then the last
-        # entry at the largest value and the first at the smallest, as the stable sort below.
-        starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
-        entry = np.arange(len(group), dtype=np.int64)
-        run = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(group)]))
-        at_top = value == np.maximum.reduceat(value, starts)[run]
-        at_bottom = value == np.minimum.reduceat(value, starts)[run]
-        top[group[starts]] = np.maximum.reduceat(np.where(at_top, entry, -1), starts)
-        bottom[group[starts]] = np.minimum.reduceat(np.where(at_bottom, entry, len(group)), starts)
-    elif len(group):
-        order = np.lexsort((value, group))  # by group, then value ascending
-        g = group[order]
-        first = np.flatnonzero(np.r_[True, g[1:] != g[:-1]])
-        last = np.r_[first[1:] - 1, len(g) - 1]
-        bottom[g[first]] = order[first]
-        top[g[last]] = order[last]
-    return top, bottom, size
 
 
 def enclosing_poses(
@@ -83,51 +56,15 @@ def enclosing_poses(
     return poses
 
 
-CYLINDER_MARGIN = 1e-6
-"""Added to the cylinder of :func:`_held_candidates` (m): far above rounding, far below a
-cloud's spacing."""
-
-
-def _held_candidates(
-    cloud: Cloud,
-    poses: np.ndarray,
-    model: GripperModel,
-    half_x: float,
-    half_z: float,
-    radius: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Flat entries that hold every point :func:`enclose` may find between a pose's fingers:
-    ``(pose row (E,), point index (E,), point - pose origin (E, 3))``, grouped by pose, the
-    points of a pose ascending.
-
-    Hands that share their origin and approach axis (the enclosing sampler's closing axes about
-    one approach) share one search: the cloud points within ``radius`` of the held box's centre
-    that lie in the cylinder about the approach axis holding the box at every turn about it
-    (``palm_depth <= y <= finger_tip``, distance from the axis at most ``|(half_x, half_z)|``);
-    each hand then gets its group's entries."""
-    mid = 0.5 * (model.palm_depth + model.finger_tip)
-    key = np.concatenate([poses[:, :3, 3], poses[:, :3, 1]], axis=1)
-    axes, group_of = np.unique(key, axis=0, return_inverse=True)
-    origin, approach = axes[:, :3], axes[:, 3:]
-    group, point = _neighbours(cloud.tree, origin + mid * approach, radius)
-    offset = cloud.points[point] - origin[group]
-    along = np.einsum("ek,ek->e", offset, approach[group])
-    across = np.einsum("ek,ek->e", offset, offset) - along**2
-    near = (along >= model.palm_depth - CYLINDER_MARGIN) & (
-        along <= model.finger_tip + CYLINDER_MARGIN
-    )
-    near &= across <= (math.hypot(half_x, half_z) + CYLINDER_MARGIN) ** 2
-    pose, entry = _expand_groups(group[near], len(axes), group_of.reshape(-1))
-    return pose, point[near][entry], offset[near][entry]
-
-
 def enclose(
     cloud: Cloud, poses: np.ndarray, model: GripperModel, *, pad_margin: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """What each hand pose's closing jaws would hold (step 6): the cloud points between its open
     fingers, ``palm_depth <= y <= finger_tip``, ``|z| <= finger_width / 2 - pad_margin``,
     ``|x| <= max_opening / 2`` in the grasp frame; the first contact of each finger is the
-    held point farthest along ``+x`` (finger 0) and along ``-x`` (finger 1).
+    held point farthest along ``+x`` (finger 0) and along ``-x`` (finger 1); of points at the
+    same ``x``, finger 0's is the last in cloud order and finger 1's the first. Every point is
+    tested against every pose in one compiled loop (:func:`baselines.cloud_kernels.held_extremes`).
 
     Args:
         cloud: the cloud.
@@ -139,28 +76,15 @@ def enclose(
         ``index (N, 2)`` int64 cloud indices of the two contacts (-1 when the pose holds fewer
         than two points) and ``local_x (N, 2)`` their ``x`` in the pose's frame (m).
     """
-    n = len(poses)
-    half_x = model.max_opening / 2.0
-    half_z = model.finger_width / 2.0 - pad_margin
-    radius = math.sqrt(half_x**2 + (0.5 * (model.finger_tip - model.palm_depth)) ** 2 + half_z**2)
-    pose, point, offset = _held_candidates(cloud, poses, model, half_x, half_z, radius)
-    # the rotations repeated per run of a pose's entries, not gathered entry by entry
-    rotation = np.repeat(poses[:, :3, :3], np.bincount(pose, minlength=n), axis=0)
-    local = np.einsum("eki,ek->ei", rotation, offset)
-    held = (
-        (local[:, 1] >= model.palm_depth)
-        & (local[:, 1] <= model.finger_tip)
-        & (np.abs(local[:, 2]) <= half_z)
-        & (np.abs(local[:, 0]) <= half_x)
+    poses = np.ascontiguousarray(np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4))
+    return held_extremes(
+        cloud.points,
+        poses,
+        float(model.palm_depth),
+        float(model.finger_tip),
+        float(model.finger_width / 2.0 - pad_margin),
+        float(model.max_opening / 2.0),
     )
-    pose, point, gx = pose[held], point[held], local[held, 0]
-    top, bottom, size = _grouped_extremes(pose, gx, n)
-    index = np.full((n, 2), -1, dtype=np.int64)
-    local_x = np.zeros((n, 2))
-    ok = size >= 2
-    index[ok, 0], index[ok, 1] = point[top[ok]], point[bottom[ok]]
-    local_x[ok, 0], local_x[ok, 1] = gx[top[ok]], gx[bottom[ok]]
-    return index, local_x
 
 
 def sample_enclosing_grasps(

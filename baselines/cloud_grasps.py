@@ -21,7 +21,7 @@ generator's pairing (:mod:`dataset_gen.grasps.pairing`), with the cloud standing
    ``n_approach`` approach directions about ``x``, evenly spaced with a seeded offset. The jaw
    width is ``w = (p0 - p1) . x``; pairs outside ``(min_width, max_opening - opening_margin]``
    are dropped.
-3. **Collision with the cloud** (:func:`hand_hits_cloud`), vectorised over poses and points. A
+3. **Collision with the cloud** (:func:`hand_hits_cloud`), every pose against every point. A
    pose is rejected when any cloud point lies, beyond ``tolerance`` (m), inside
 
    * the palm box (:meth:`~dataset_gen.grasps.gripper.GripperModel.palm_box`, shrunk by ``tolerance``);
@@ -84,7 +84,8 @@ cameras' seen free space (steps 2 and 3) in :mod:`baselines.cloud_hand`; the enc
 (steps 5-7) in :mod:`baselines.cloud_enclosing`. This module holds the antipodal contact pairs
 (step 1), the single-arm grasps of steps 1-3 and the dual candidates (step 4), and re-exports
 every public name of the other three, so ``from baselines.cloud_grasps import hand_hits_cloud``
-keeps working.
+keeps working. The loops over (hand or seed, cloud point) pairs of steps 1, 3 and 6 are compiled
+(:mod:`baselines.cloud_kernels`, which imports nothing of these).
 """
 
 from __future__ import annotations
@@ -116,9 +117,9 @@ from baselines.cloud_inputs import (
     Cloud,
     CloudError,
     CloudSamplerConfig,
-    _neighbours,
     check_cloud,
 )
+from baselines.cloud_kernels import best_partners
 from dataset_gen.grasps.gripper import get_gripper
 from dataset_gen.grasps.pairing import candidate_pairs, dual_contacts, dual_poses
 from dataset_gen.grasps.sampling import SingleArmGrasps
@@ -144,39 +145,6 @@ class ContactPairs:
         return int(self.index.shape[0])
 
 
-PARTNER_BALL_MARGIN = 1e-6
-"""Added to the radius of :func:`partner_ball` (m): far above rounding, far below a cloud's
-spacing."""
-
-
-def partner_ball(
-    seeds: np.ndarray, normals: np.ndarray, cos_cone: float, max_width: float
-) -> tuple[np.ndarray, float]:
-    """The smallest ball about each seed's inward normal that holds every possible partner.
-
-    A partner ``p1`` of the seed ``p0`` (outward normal ``n0``) has ``d = p1 - p0`` with
-    ``|d| <= W`` (``max_width``) and ``d . (-n0) >= c |d|`` (``cos_cone``): the part of the ball
-    of radius ``W`` about ``p0`` inside the friction cone about ``-n0``. Its farthest points from
-    ``p0 - h n0`` are the apex (at ``h``) and the cone's rim on the sphere (at
-    ``sqrt(W^2 + h^2 - 2 h W c)``); ``h = W / (2c)`` makes them equal, so every partner lies
-    within ``W / (2c)`` of ``p0 - W / (2c) n0``: with the paper's ``mu = 0.4`` a ball of 0.54
-    ``W`` (0.16 of the volume), which is what makes the search fast where the whole cloud lies
-    within ``W`` of every seed (a small object). For ``c <= 1/2`` (a cone of 60 degrees or more)
-    the ball about the seed itself is as small, and is returned.
-
-    Args:
-        seeds: (S, 3) seed points (m). normals: (S, 3) their unit outward normals.
-        cos_cone: the cosine of the cone's half-angle. max_width: ``W`` (m).
-
-    Returns:
-        ``(centres (S, 3), radius)`` (m), the radius grown by :data:`PARTNER_BALL_MARGIN`.
-    """
-    if cos_cone <= 0.5:
-        return np.asarray(seeds, dtype=np.float64), max_width + PARTNER_BALL_MARGIN
-    shift = max_width / (2.0 * cos_cone)
-    return seeds - shift * normals, shift + PARTNER_BALL_MARGIN
-
-
 def cloud_contact_pairs(
     cloud: Cloud,
     seeds: np.ndarray,
@@ -187,10 +155,8 @@ def cloud_contact_pairs(
 ) -> ContactPairs:
     """Each seed's most antipodal partner within both friction cones, duplicates dropped.
 
-    The partners of a seed are searched among the cloud points in the ball of
-    :func:`partner_ball` (a k-d tree, :class:`scipy.spatial.cKDTree`), which holds every point
-    within ``max_width`` of the seed and inside its friction cone; the distance and cone tests
-    run on the flat list of (seed, neighbour) entries.
+    Every cloud point is tried as each seed's partner in one compiled loop
+    (:func:`baselines.cloud_kernels.best_partners`); duplicates are dropped here.
 
     Args:
         cloud: the cloud.
@@ -205,24 +171,10 @@ def cloud_contact_pairs(
     seeds = np.asarray(seeds, dtype=np.int64)
     cos_cone = math.cos(math.atan(mu)) - _COS_EPS
     pts, nrm = cloud.points, cloud.normals
-    centre, radius = partner_ball(pts[seeds], nrm[seeds], cos_cone, max_width)
-    row, j = _neighbours(cloud.tree, centre, radius)
-    i = seeds[row]
-    d = pts[j] - pts[i]
-    dist = np.linalg.norm(d, axis=1)
-    ok = (dist > min_width) & (dist <= max_width)
-    row, i, j, d, dist = row[ok], i[ok], j[ok], d[ok], dist[ok]
-    cos0 = -np.einsum("ek,ek->e", d, nrm[i]) / dist  # d . (-n0)
-    cos1 = np.einsum("ek,ek->e", d, nrm[j]) / dist  # d . n1
-    both = np.minimum(cos0, cos1)
-    ok = both >= cos_cone
-    row, j, both = row[ok], j[ok], both[ok]
-    # per seed row: the largest cosine, then the lowest partner index
-    order = np.lexsort((-j, both, row))
-    last = np.flatnonzero(np.r_[row[order][1:] != row[order][:-1], len(order) > 0])
-    pick = order[last]
-    index = np.stack([seeds[row[pick]], j[pick]], axis=1)
-    cosine = both[pick]
+    partner, best = best_partners(pts, nrm, seeds, cos_cone, float(min_width), float(max_width))
+    found = partner >= 0
+    index = np.stack([seeds[found], partner[found]], axis=1)
+    cosine = best[found]
     if len(index):
         key = np.sort(index, axis=1)
         _, first = np.unique(key[:, 0] * cloud.n + key[:, 1], return_index=True)
@@ -415,7 +367,6 @@ __all__ = [
     "MAX_BACK_FACING",
     "MIN_POINTS",
     "NORMAL_TOLERANCE",
-    "PARTNER_BALL_MARGIN",
     "Cloud",
     "CloudError",
     "CloudSamplerConfig",
@@ -435,7 +386,6 @@ __all__ = [
     "hand_volume_points",
     "hands_in_seen_free_space",
     "paired_candidates",
-    "partner_ball",
     "sample_cloud_grasps",
     "sample_enclosing_grasps",
 ]

@@ -1,7 +1,7 @@
 """The Panda hand against what was observed of an object, for the cloud grasp sampler
 (:mod:`baselines.cloud_grasps`; the steps named below are those of its docstring): hand poses that
 put the fingers on two contacts (:func:`hand_poses`), whether an open hand has a cloud point inside
-its palm or finger volumes (:func:`hand_hits_cloud`, within the two balls of :func:`hand_balls`)
+its palm or finger volumes (:func:`hand_hits_cloud`)
 or a contact off its pad, and what depth cameras saw (:class:`DepthViews`), to test whether every
 point of an open hand (:func:`hand_volume_points`) lies in space a camera saw empty
 (:func:`hands_in_seen_free_space`). Units: metres; poses are the dg16m grasp frame.
@@ -12,9 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from baselines.cloud_inputs import Cloud, _neighbours
+from baselines.cloud_inputs import Cloud
+from baselines.cloud_kernels import hands_hit_points
 from dataset_gen.grasps.gripper import Box, GripperModel
 from dataset_gen.grasps.sampling import _tangent_basis
 
@@ -63,10 +63,6 @@ def hand_reach(model: GripperModel) -> float:
     return float(np.linalg.norm(corners - [0.0, model.contact_depth, 0.0], axis=1).max())
 
 
-COARSE_POINTS = (64, 512)
-"""Points of the first passes of :func:`hand_hits_cloud` (strided subsets of the cloud)."""
-
-
 def hand_hits_cloud(
     points: np.ndarray | Cloud,
     poses: np.ndarray,
@@ -77,15 +73,12 @@ def hand_hits_cloud(
 ) -> np.ndarray:
     """Whether each hand pose has a cloud point inside its palm or finger volumes (step 3).
 
-    Only the points within the two balls of :func:`hand_balls` of each pose are tested (a k-d
-    tree), on a flat list of (pose, point) entries, in passes with the same answer as one:
-    first against every n-th point (about 64, then about 512 points: :data:`COARSE_POINTS`),
-    then only the poses that are still clear against the whole cloud. On a small object nearly
-    every sampled hand hits it and has the whole cloud within reach, so the first passes settle
-    most hands at a fraction of the cost.
+    Every point is tested against every pose in one compiled loop
+    (:func:`baselines.cloud_kernels.hands_hit_points`) that stops at a hand's first hit: on a
+    small object nearly every sampled hand hits it within its first few points.
 
     Args:
-        points: (P, 3) cloud points (m), or a :class:`Cloud` (its tree is reused).
+        points: (P, 3) cloud points (m), or a :class:`Cloud`.
         poses: (N, 4, 4) hand poses (grasp frame -> object frame, m).
         contact_x: (N, 2) the ``x`` of finger 0's and finger 1's contact in each pose's frame
             (m; ``+w/2`` and ``-w/2`` for a centred grasp).
@@ -96,118 +89,34 @@ def hand_hits_cloud(
             falls between its points.
 
     Returns:
-        (N,) bool, True = the hand intersects the cloud.
+        (N,) bool, True = the hand intersects the cloud: a point strictly inside the palm box
+        grown by ``clearance - tolerance``, or within the fingers' footprint
+        (``palm_depth - clearance <= y <= finger_tip + clearance``, ``|z| <= finger_width / 2 +
+        clearance``) and past a finger's contact by more than ``tolerance`` out to its open
+        outer face grown by ``clearance`` (``x <= max_opening / 2 + finger_thickness +
+        clearance`` for finger 0, mirrored for finger 1).
     """
-    if isinstance(points, Cloud):
-        pts, tree = points.points, points.tree
-    else:
-        pts = np.asarray(points, dtype=np.float64)
-        tree = None
+    pts = points.points if isinstance(points, Cloud) else np.asarray(points, dtype=np.float64)
     poses = np.asarray(poses, dtype=np.float64)
     contact_x = np.asarray(contact_x, dtype=np.float64)
     if len(poses) == 0:
         return np.zeros(0, dtype=bool)
-    hit = np.zeros(len(poses), dtype=bool)
-    for stride in [len(pts) // size for size in COARSE_POINTS if len(pts) // size > 1]:
-        rest = np.flatnonzero(~hit)
-        if len(rest) == 0:
-            break
-        coarse = pts[::stride]
-        args = (poses[rest], contact_x[rest], model, tolerance, clearance)
-        hit[rest] = _hits(coarse, cKDTree(coarse), *args)
-    rest = np.flatnonzero(~hit)
-    if len(rest):
-        tree = tree if tree is not None else cKDTree(pts)
-        hit[rest] = _hits(pts, tree, poses[rest], contact_x[rest], model, tolerance, clearance)
-    return hit
-
-
-def _hits(
-    pts: np.ndarray,
-    tree: cKDTree,
-    poses: np.ndarray,
-    contact_x: np.ndarray,
-    model: GripperModel,
-    tolerance: float,
-    clearance: float,
-) -> np.ndarray:
-    """One pass of :func:`hand_hits_cloud` over the points ``pts`` (P, 3) with their tree."""
     palm = model.palm_box()
     grow = clearance - tolerance
     palm_lo = np.asarray(palm.center) - np.asarray(palm.half_extents) - grow
     palm_hi = np.asarray(palm.center) + np.asarray(palm.half_extents) + grow
-    outer = model.max_opening / 2.0 + model.finger_thickness + clearance
-    half_z = model.finger_width / 2.0 + clearance
-    pose, point = _hand_entries(tree, poses, model, clearance)
-    R, t = poses[pose, :3, :3], poses[pose, :3, 3]
-    local = np.einsum("eki,ek->ei", R, pts[point] - t)
-    gx, gy, gz = local[:, 0], local[:, 1], local[:, 2]
-    in_palm = (
-        (gx > palm_lo[0])
-        & (gx < palm_hi[0])
-        & (gy > palm_lo[1])
-        & (gy < palm_hi[1])
-        & (gz > palm_lo[2])
-        & (gz < palm_hi[2])
+    foot_y = np.array([model.palm_depth - clearance, model.finger_tip + clearance])
+    return hands_hit_points(
+        np.ascontiguousarray(pts.reshape(-1, 3)),
+        np.ascontiguousarray(poses.reshape(-1, 4, 4)),
+        np.ascontiguousarray(contact_x.reshape(-1, 2)),
+        palm_lo,
+        palm_hi,
+        foot_y,
+        float(model.finger_width / 2.0 + clearance),
+        float(model.max_opening / 2.0 + model.finger_thickness + clearance),
+        float(tolerance),
     )
-    foot = (gy >= model.palm_depth - clearance) & (gy <= model.finger_tip + clearance)
-    foot &= np.abs(gz) <= half_z
-    finger0 = (gx > contact_x[pose, 0] + tolerance) & (gx <= outer)
-    finger1 = (gx < contact_x[pose, 1] - tolerance) & (gx >= -outer)
-    hit = in_palm | (foot & (finger0 | finger1))
-    return np.bincount(pose[hit], minlength=len(poses)) > 0
-
-
-HAND_BALL_MARGIN = 1e-6
-"""Added to the radii of :func:`hand_balls` (m): far above rounding, far below a cloud's
-spacing."""
-
-
-def hand_balls(model: GripperModel, clearance: float) -> tuple[np.ndarray, float]:
-    """Two balls that hold everything :func:`hand_hits_cloud` tests: ``(centres (2, 3)`` in the
-    grasp frame, ``radius)`` (m).
-
-    The tested volumes (the palm box and the fingers' footprints out to the open fingers, each
-    grown by ``clearance``) lie in one box; its halves at ``x >= 0`` and ``x <= 0`` are each
-    held by the ball about its centre. The palm makes the hand a flat slab (20.5 x 11.2 x 6.3
-    cm for the Panda), so the two balls hold about a third of the volume of one ball about the
-    grasp centre (:func:`hand_reach`): a third of the (hand, point) entries on a small object
-    whose whole cloud lies within reach of every hand."""
-    grow = max(clearance, 0.0)
-    palm = model.palm_box()
-    lo = np.minimum(
-        np.asarray(palm.center) - np.asarray(palm.half_extents),
-        [
-            -model.max_opening / 2.0 - model.finger_thickness,
-            model.palm_depth,
-            -model.finger_width / 2.0,
-        ],
-    )
-    hi = np.maximum(
-        np.asarray(palm.center) + np.asarray(palm.half_extents),
-        [
-            model.max_opening / 2.0 + model.finger_thickness,
-            model.finger_tip,
-            model.finger_width / 2.0,
-        ],
-    )
-    lo, hi = lo - grow, hi + grow
-    centres = np.array([[lo[0] / 2.0, 0.0, 0.0], [hi[0] / 2.0, 0.0, 0.0]])
-    centres[:, 1:] = 0.5 * (lo[1:] + hi[1:])
-    half = np.array([max(-lo[0], hi[0]) / 2.0, *(0.5 * (hi[1:] - lo[1:]))])
-    return centres, float(np.linalg.norm(half)) + HAND_BALL_MARGIN
-
-
-def _hand_entries(
-    tree: cKDTree, poses: np.ndarray, model: GripperModel, clearance: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Flat (pose row, point index) entries holding every tree point in the volumes
-    :func:`_hits` tests of each pose (a point may come twice: the two balls of
-    :func:`hand_balls` overlap)."""
-    centres, radius = hand_balls(model, clearance)
-    world = np.einsum("nij,bj->bni", poses[:, :3, :3], centres) + poses[None, :, :3, 3]
-    rows, points = _neighbours(tree, world.reshape(-1, 3), radius)
-    return rows % len(poses), points
 
 
 def _on_pads(local_contacts: np.ndarray, model: GripperModel, margin: float) -> np.ndarray:
@@ -321,9 +230,7 @@ def hands_in_seen_free_space(
 
 
 __all__ = [
-    "HAND_BALL_MARGIN",
     "DepthViews",
-    "hand_balls",
     "hand_hits_cloud",
     "hand_poses",
     "hand_reach",

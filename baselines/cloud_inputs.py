@@ -1,14 +1,12 @@
 """The inputs of the cloud grasp sampler (:mod:`baselines.cloud_grasps`): the checked point cloud
 with normals (:class:`Cloud`, made by :func:`check_cloud`, which refuses a malformed cloud with a
-:class:`CloudError` that says what was expected and found), the neighbour lists of its k-d tree
-that the contact search and the hand's collision tests share (``_neighbours``), and the sampler's
-parameters (:class:`CloudSamplerConfig`; the "module docstring" it refers to is that of
+:class:`CloudError` that says what was expected and found) and the sampler's parameters
+(:class:`CloudSamplerConfig`; the "module docstring" it refers to is that of
 :mod:`baselines.cloud_grasps`). Units: metres, object frame.
 """
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -126,50 +124,6 @@ def _spacing(points: np.ndarray) -> float:
     nearest = distance[:, 1]
     nearest = nearest[nearest > 0.0]
     return float(np.median(nearest)) if nearest.size else 0.0
-
-
-def _neighbours(tree: cKDTree, queries: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Flat (query row, point index) arrays of every tree point within ``radius`` (m) of each
-    of ``queries`` (Q, 3), grouped by query row, each group's indices ascending.
-
-    Equal queries are searched once (the enclosing sampler's closing axes share their hand's
-    centre): the same arrays as one search per row."""
-    queries = np.asarray(queries, dtype=np.float64).reshape(-1, 3)
-    unique, inverse = np.unique(queries, axis=0, return_inverse=True)
-    if len(unique) == len(queries):
-        return _search(tree, queries, radius)
-    rows, points = _search(tree, unique, radius)
-    row, entry = _expand_groups(rows, len(unique), inverse.reshape(-1))
-    return row, points[entry]
-
-
-def _expand_groups(
-    groups: np.ndarray, n_groups: int, group_of: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Flat entries grouped by ``groups`` (E,) (runs, ascending, in ``[0, n_groups)``) handed
-    to rows: row ``r`` gets the entries of group ``group_of[r]`` (``group_of`` (R,)), in their
-    order. Returns ``(row, entry)``, grouped by row: each entry's row and its index into the
-    flat entries."""
-    sizes = np.bincount(groups, minlength=n_groups)
-    starts = np.r_[0, np.cumsum(sizes)[:-1]]
-    counts = sizes[group_of]
-    row = np.repeat(np.arange(len(group_of), dtype=np.int64), counts)
-    offsets = np.r_[0, np.cumsum(counts)[:-1]]
-    within = np.arange(int(counts.sum()), dtype=np.int64) - np.repeat(offsets, counts)
-    return row, np.repeat(starts[group_of], counts) + within
-
-
-def _search(tree: cKDTree, queries: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_neighbours` with one tree search per query row."""
-    lists = tree.query_ball_point(queries, r=radius, return_sorted=True)
-    sizes = np.fromiter((len(x) for x in lists), dtype=np.int64, count=len(lists))
-    rows = np.repeat(np.arange(len(lists), dtype=np.int64), sizes)
-    points = (
-        np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=int(sizes.sum()))
-        if len(lists)
-        else np.zeros(0, dtype=np.int64)
-    )
-    return rows, points
 
 
 @dataclass(frozen=True)

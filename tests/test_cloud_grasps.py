@@ -101,27 +101,6 @@ def test_hand_hits_a_point_in_the_palm_and_not_one_between_the_fingers():
     assert hand_hits_cloud(near_tip, pose, contact_x, PANDA, 2e-3, clearance=0.005)[0]
 
 
-@pytest.mark.parametrize("clearance", [0.0, 0.004])
-def test_the_coarse_passes_give_the_one_pass_answer(box_cloud, monkeypatch, clearance):
-    """Hands about the box's points, half of them hitting it: the strided first passes
-    (``COARSE_POINTS``) settle some hands early and leave every answer as one pass gives it."""
-    import baselines.cloud_hand as cloud_hand
-
-    rng = np.random.default_rng(3)
-    n = 400
-    poses = np.zeros((n, 4, 4))
-    for i in range(n):
-        poses[i] = trimesh.transformations.random_rotation_matrix(rng.random(3))
-    centres = box_cloud.points[rng.integers(0, box_cloud.n, n)] + rng.normal(0.0, 0.03, (n, 3))
-    poses[:, :3, 3] = centres - PANDA.contact_depth * poses[:, :3, 1]
-    contact_x = np.tile([0.03, -0.03], (n, 1))
-    fast = hand_hits_cloud(box_cloud, poses, contact_x, PANDA, 2e-3, clearance)
-    monkeypatch.setattr(cloud_hand, "COARSE_POINTS", ())
-    one_pass = hand_hits_cloud(box_cloud.points, poses, contact_x, PANDA, 2e-3, clearance)
-    assert 0.2 < one_pass.mean() < 0.98
-    np.testing.assert_array_equal(fast, one_pass)
-
-
 def test_a_cloud_without_antipodal_points_gives_no_candidates_not_an_error():
     rng = np.random.default_rng(0)
     points = np.column_stack([rng.uniform(-0.3, 0.3, (200, 2)), np.zeros(200)])
