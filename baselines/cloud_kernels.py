@@ -21,6 +21,14 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, inline="always")
+def _in_hand(r: np.ndarray, axis: int, v0: float, v1: float, v2: float) -> float:
+    """The coordinate along the hand's ``axis`` (0: closing ``x``, 1: approach ``y``, 2: ``z``)
+    of a point at ``(v0, v1, v2)`` from the hand's origin, ``r`` the hand's rotation: the sum
+    in index order, ``R[0, axis] v0 + R[1, axis] v1 + R[2, axis] v2``."""
+    return r[0, axis] * v0 + r[1, axis] * v1 + r[2, axis] * v2
+
+
 @njit(cache=True)
 def hands_hit_points(
     points: np.ndarray,
@@ -57,11 +65,11 @@ def hands_hit_points(
             v0 = points[j, 0] - t0
             v1 = points[j, 1] - t1
             v2 = points[j, 2] - t2
-            gy = r[0, 1] * v0 + r[1, 1] * v1 + r[2, 1] * v2
+            gy = _in_hand(r, 1, v0, v1, v2)
             if gy < y_lo or gy > y_hi:
                 continue
-            gz = r[0, 2] * v0 + r[1, 2] * v1 + r[2, 2] * v2
-            gx = r[0, 0] * v0 + r[1, 0] * v1 + r[2, 0] * v2
+            gz = _in_hand(r, 2, v0, v1, v2)
+            gx = _in_hand(r, 0, v0, v1, v2)
             in_palm = (
                 gx > palm_lo[0]
                 and gx < palm_hi[0]
@@ -106,13 +114,13 @@ def held_extremes(
             v0 = points[j, 0] - t0
             v1 = points[j, 1] - t1
             v2 = points[j, 2] - t2
-            gy = r[0, 1] * v0 + r[1, 1] * v1 + r[2, 1] * v2
+            gy = _in_hand(r, 1, v0, v1, v2)
             if gy < y_lo or gy > y_hi:
                 continue
-            gz = r[0, 2] * v0 + r[1, 2] * v1 + r[2, 2] * v2
+            gz = _in_hand(r, 2, v0, v1, v2)
             if abs(gz) > half_z:
                 continue
-            gx = r[0, 0] * v0 + r[1, 0] * v1 + r[2, 0] * v2
+            gx = _in_hand(r, 0, v0, v1, v2)
             if abs(gx) > half_x:
                 continue
             if count == 0 or gx >= top_x:
