@@ -94,9 +94,8 @@ from baselines.cloud_grasps import (
 )
 from baselines.cloud_robust import (
     MOTION_RATIO_LEVELS,
+    candidates_robust_first,
     check_ratio_levels,
-    cloud_inertia,
-    robust_first,
 )
 from baselines.shape_completion import (
     Completion,
@@ -664,16 +663,15 @@ class CloudPredictor:
                 self.start_risk(cloud, views, cands) <= self.max_start_risk
             )
         if self.robust:
-            scores = robust_first(
+            scores = candidates_robust_first(
                 scores,
                 passed,
-                cands.contact_points,
-                cands.contact_normals,
+                cands,
+                cloud.points,
                 k=self.k,
                 bonus=ROBUST_BONUS,
-                inertia=cloud_inertia(cloud.points),
                 max_ratios=self.motion_ratio_levels,
-            ).scores
+            )
         top = np.argsort(-scores, kind="stable")[: self.k]
         return cands.poses[top].astype(np.float64), np.asarray(scores[top], dtype=np.float64)
 

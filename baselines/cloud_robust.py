@@ -39,7 +39,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import QhullError
 
-from baselines.cloud_grasps import CloudError
+from baselines.cloud_grasps import CloudError, DualCandidates
 from dataset_gen.grasps.robust import disturbance_motion
 from dg16m_core.checks import check_integer, check_number
 from dg16m_core.parameters import PAPER
@@ -220,11 +220,37 @@ def robust_first(
     return RobustRanking(scores=new, robust=robust, ratio=ratio, evaluated=evaluated)
 
 
+def candidates_robust_first(
+    scores: np.ndarray,
+    passed: np.ndarray,
+    candidates: DualCandidates,
+    cloud_points: np.ndarray,
+    *,
+    k: int,
+    bonus: float,
+    max_ratios: Sequence[float] = MOTION_RATIO_LEVELS,
+) -> np.ndarray:
+    """(N,) :func:`robust_first`'s new scores of dual ``candidates`` on a cloud: their cloud
+    contacts, the centre of mass at the origin, the inertia of a solid filling the hull of
+    ``cloud_points`` (P, 3) (m) at the paper's mass (:func:`cloud_inertia`)."""
+    return robust_first(
+        scores,
+        passed,
+        candidates.contact_points,
+        candidates.contact_normals,
+        k=k,
+        bonus=bonus,
+        inertia=cloud_inertia(cloud_points),
+        max_ratios=max_ratios,
+    ).scores
+
+
 __all__ = [
     "MIN_SIDE",
     "MOTION_RATIO_LEVELS",
     "ROBUST_CHUNK",
     "RobustRanking",
+    "candidates_robust_first",
     "check_ratio_levels",
     "cloud_inertia",
     "robust_first",

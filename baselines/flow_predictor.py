@@ -31,8 +31,11 @@ cloud``) :class:`FlowPredictor`
    :class:`baselines.dual_pointnet_gpd.DualPointNetGPD` trained on this pipeline's own pairs
    labelled on the full meshes (GraspGen's lesson: a classifier trained only on dataset grasps
    is fooled by generated ones); ``"random"``, seeded uniform scores on the same pairs (the
-   control); and returns the ``k`` best. An object without any pair raises
-   :class:`~baselines.cloud_grasps.CloudError` (the runner scores it 0).
+   control); with ``robust=True`` (:data:`flow_robust_predictor`) the passing pairs are first
+   ordered by the robust criterion on their cloud contacts (:mod:`baselines.cloud_robust`: robust,
+   then nearly robust level by level; the ranker orders each level); and returns the ``k`` best.
+   An object without any pair raises :class:`~baselines.cloud_grasps.CloudError` (the runner
+   scores it 0).
 
 Randomness: per object ``object_seed(seed, "flow:" + stream name)`` seeds a
 ``numpy.random.Generator`` (the cloud subset, the anchors, the pair subset, the random ranker,
@@ -65,10 +68,16 @@ from baselines.cloud_grasps import (
 from baselines.cloud_predictor import (
     CHECKPOINTS,
     PARTIAL_SAMPLER,
+    ROBUST_BONUS,
     classifier_scores,
     cloud_force_closure,
     is_cloud_track,
     stream_name,
+)
+from baselines.cloud_robust import (
+    MOTION_RATIO_LEVELS,
+    candidates_robust_first,
+    check_ratio_levels,
 )
 from baselines.depth_smoothing import DepthSmoothing, smoothed_observation
 from dataset_gen.grasps.gripper import GripperModel, get_gripper
@@ -326,6 +335,13 @@ class FlowPredictor:
         smoothing: with a cloud-track observation (its depth images), each camera's depth is
             first smoothed (:mod:`baselines.depth_smoothing`) and the points and normals
             rebuilt from it; None: the observation's points and normals as they are.
+        robust: rank the passing pairs by the robust criterion on their cloud contacts first
+            (:func:`baselines.cloud_robust.robust_first`: the disturbance motion ratio under
+            the protocol's loads, the centre of mass at the observation's origin, the inertia
+            of a solid filling the checks' cloud's hull at the paper's mass): robust pairs
+            (ratio <= ``motion_ratio_levels[0]``) first, then level by level; the ranker orders
+            each level (:data:`baselines.cloud_predictor.ROBUST_BONUS`, as there).
+        motion_ratio_levels: ascending motion ratios of those levels.
     """
 
     generator_checkpoint: str | None = None
@@ -342,8 +358,13 @@ class FlowPredictor:
     proposals: Proposals = "generator+sampler"
     threads: int = 1
     smoothing: DepthSmoothing | None = None
+    robust: bool = False
+    motion_ratio_levels: tuple[float, ...] = MOTION_RATIO_LEVELS
 
     def __post_init__(self) -> None:
+        if not isinstance(self.robust, bool):
+            raise CloudError(f"robust: expected a bool, found {self.robust!r}")
+        check_ratio_levels(self.motion_ratio_levels)
         if self.ranker not in FLOW_RANKERS:
             raise CloudError(f"ranker: expected one of {FLOW_RANKERS}, found {self.ranker!r}")
         if self.proposals not in PROPOSALS:
@@ -416,6 +437,16 @@ class FlowPredictor:
         else:
             scores = rng.random(candidates.n)
         scores = scores + FC_BONUS * passed
+        if self.robust:
+            scores = candidates_robust_first(
+                scores,
+                passed,
+                candidates,
+                cloud.points,
+                k=self.k,
+                bonus=ROBUST_BONUS,
+                max_ratios=self.motion_ratio_levels,
+            )
         order = np.argsort(-scores, kind="stable")[: self.k]
         return candidates.poses[order], scores[order]
 
@@ -426,6 +457,10 @@ flow_predictor = FlowPredictor()
 
 flow_smoothed_predictor = FlowPredictor(smoothing=DepthSmoothing())
 """The same with each camera's depth smoothed first (:mod:`baselines.depth_smoothing`)."""
+
+flow_robust_predictor = FlowPredictor(smoothing=DepthSmoothing(), robust=True)
+"""The smoothed predictor with the robust criterion on the cloud contacts ranking the passing
+pairs level by level before the ranker (``robust=True``)."""
 
 flow_random_predictor = FlowPredictor(ranker="random")
 """The same pairs and checks in random order within each group: the ranker's control."""
@@ -443,6 +478,8 @@ __all__ = [
     "check_observation",
     "flow_predictor",
     "flow_random_predictor",
+    "flow_robust_predictor",
+    "flow_smoothed_predictor",
     "load_flow_ranker",
     "load_generator",
     "observed_cloud",

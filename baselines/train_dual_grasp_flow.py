@@ -18,10 +18,12 @@ can be split into runs of an hour or two; Ctrl-C saves and stops).
 2. **samples**: the predictor's pipeline (:class:`baselines.flow_predictor.FlowPredictor` with
    the trained generator, its hands closed on ``check_points`` of the cloud, paired and checked)
    runs on the clouds of ``ranker_objects`` objects (a tenth of them validation objects);
-   ``ranker_samples`` of each object's dual candidates are labelled on the object's full mesh
-   with the benchmark's force-closure check (:func:`dg16m_env.evaluators.fce.fce_verdicts`: the
-   open hands must clear the whole mesh, the jaws close on it, the four contacts pass). One file
-   per object (``samples/<id>.npz``), written atomically.
+   ``ranker_samples`` of each object's dual candidates (with ``ranker_pairs=
+   "cloud_force_closure"``, of those passing force closure on the cloud) are labelled on the
+   object's full mesh with the benchmark's force-closure check
+   (:func:`dg16m_env.evaluators.fce.fce_verdicts`: the open hands must clear the whole mesh, the
+   jaws close on it, the four contacts pass). One file per object (``samples/<id>.npz``),
+   written atomically.
 3. **ranker**: a :class:`baselines.dual_pointnet_gpd.DualPointNetGPD` learns those labels from
    the cloud (binary cross-entropy; batches of ``ranker_batch_objects`` objects x
    ``ranker_grasps`` samples, half passing where an object has both), validation ROC AUC on the
@@ -59,6 +61,8 @@ from dg16m_core.errors import Dg16mError
 from dg16m_core.progress import progress_bar
 
 STAGES = ("generator", "samples", "ranker", "done")
+RANKER_PAIRS = ("all", "cloud_force_closure")
+"""Values of ``--ranker-pairs``."""
 
 
 class TrainingArgumentsError(Dg16mError, ValueError):
@@ -98,6 +102,10 @@ class Args:
     """objects whose generated samples train the ranker (a tenth of them validation objects)"""
     ranker_samples: int = 64
     """generated dual grasps per object for the ranker"""
+    ranker_pairs: str = "all"
+    """which of an object's dual candidates its ranker samples are drawn from: 'all' (the shipped
+    ranker's) or 'cloud_force_closure' (only those whose cloud contacts pass force closure: the
+    group the predictor ranks first, whose order decides most objects' top 10)"""
     check_points: int = 1024
     """cloud points the samples' hands are closed on and checked against (FlowPredictor's
     check_points; the shipped ranker's samples were made with 1024, the predictor checks 4096)"""
@@ -505,7 +513,8 @@ def object_samples(args: Args, record: Any) -> dict[str, np.ndarray]:
         threads=args.threads,
     )
     cloud, candidates, passed, rng = predictor.candidates(observation)
-    take = np.sort(rng.choice(candidates.n, min(candidates.n, args.ranker_samples), replace=False))
+    pool = np.arange(candidates.n) if args.ranker_pairs == "all" else np.flatnonzero(passed)
+    take = np.sort(rng.choice(pool, min(pool.size, args.ranker_samples), replace=False))
     poses = candidates.poses[take]
     codes = fce_verdicts(obj, poses, PAPER_FORCE_CLOSURE)[0] if len(take) else np.zeros(0, np.int8)
     return {
@@ -690,6 +699,10 @@ def main(args: Args | None = None) -> dict[str, Any]:
             raise TrainingArgumentsError(
                 f"--{name.replace('_', '-')}: expected >= 1, found {getattr(args, name)}"
             )
+    if args.ranker_pairs not in RANKER_PAIRS:
+        raise TrainingArgumentsError(
+            f"--ranker-pairs: expected one of {RANKER_PAIRS}, found {args.ranker_pairs!r}"
+        )
     if args.grasps_per_batch > args.grasps_per_object:
         raise TrainingArgumentsError(
             "expected --grasps-per-batch <= --grasps-per-object, found "

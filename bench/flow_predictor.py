@@ -7,7 +7,9 @@ cloud_observation.cloud_observation`, two cameras, kinect noise) is made once, t
 ``observation -> 10 dual grasps`` is timed ``--repeats`` times after a warm-up (models loaded),
 per object the minimum, then the median and maximum over the objects, for
 :data:`baselines.flow_predictor.flow_predictor`, its variant with each camera's depth smoothed
-first (:data:`baselines.flow_predictor.flow_smoothed_predictor`) and, as the reference predictor,
+first (:data:`baselines.flow_predictor.flow_smoothed_predictor`), that variant with the robust
+criterion ranking its passing pairs (:data:`baselines.flow_predictor.flow_robust_predictor`)
+and, as the reference predictor,
 :data:`baselines.cloud_predictor.cgdf_robust_predictor` (the two-camera sample-and-rank
 predictor it replaces). The machine reference is a fixed 1024 x 1024 float32 numpy matmul
 repeated 20 times (the machine is shared and noisy; ratios travel better than seconds).
@@ -38,7 +40,11 @@ import numpy as np
 
 from baselines.cloud_grasps import CloudError
 from baselines.cloud_predictor import cgdf_robust_predictor
-from baselines.flow_predictor import flow_predictor, flow_smoothed_predictor
+from baselines.flow_predictor import (
+    flow_predictor,
+    flow_robust_predictor,
+    flow_smoothed_predictor,
+)
 from dg16m_core.atomic import write_json_atomic
 from dg16m_env.evaluators import load_benchmark_ref
 from dg16m_env.subjects.cloud_observation import cloud_observation
@@ -108,6 +114,7 @@ def main() -> None:
     reference = matmul_reference()
     flow = per_object(flow_predictor, observations, args.repeats)
     smoothed = per_object(flow_smoothed_predictor, observations, args.repeats)
+    flow_robust = per_object(flow_robust_predictor, observations, args.repeats)
     robust = per_object(cgdf_robust_predictor, observations, args.repeats)
     summary = {
         "benchmark": args.benchmark,
@@ -115,20 +122,25 @@ def main() -> None:
         "matmul_reference_s": round(reference, 4),
         "flow_predictor_s": spread(flow),
         "flow_smoothed_predictor_s": spread(smoothed),
+        "flow_robust_predictor_s": spread(flow_robust),
         "cgdf_robust_predictor_s": spread(robust),
         "flow_slowest": slowest(ids, flow),
         "flow_smoothed_slowest": slowest(ids, smoothed),
+        "flow_robust_slowest": slowest(ids, flow_robust),
         "cgdf_robust_slowest": slowest(ids, robust),
         "flow_over_cgdf_robust": statistics.median(flow) / statistics.median(robust),
         "flow_over_matmul": statistics.median(flow) / reference,
         "target_s": TARGET_S,
     }
     flow_s, smoothed_s = summary["flow_predictor_s"], summary["flow_smoothed_predictor_s"]
+    flow_robust_s = summary["flow_robust_predictor_s"]
     print(
         f"{len(observations)} objects ({args.benchmark}), one core: flow_predictor median "
         f"{flow_s['median']:.2f} s (p95 {flow_s['p95']:.2f}, max {flow_s['max']:.2f}, "
         f"{flow_s['over_target']} over {TARGET_S} s), flow_smoothed_predictor median "
-        f"{smoothed_s['median']:.2f} s (max {smoothed_s['max']:.2f}), cgdf_robust "
+        f"{smoothed_s['median']:.2f} s (max {smoothed_s['max']:.2f}), flow_robust_predictor "
+        f"median {flow_robust_s['median']:.2f} s (max {flow_robust_s['max']:.2f}, "
+        f"{flow_robust_s['over_target']} over), cgdf_robust "
         f"{statistics.median(robust):.2f} s: ratio {summary['flow_over_cgdf_robust']:.2f}; "
         f"matmul reference {reference:.3f} s; target {TARGET_S} s"
     )

@@ -175,6 +175,24 @@ def test_training_runs_resumes_to_the_same_weights_and_refuses_another_runs_stat
         training.main(replace(parted, generator_steps=3))
 
 
+def test_ranker_samples_drawn_from_the_cloud_force_closure_group_all_pass_on_the_cloud(
+    dataset: Path, tmp_path: Path
+) -> None:
+    args = tiny_args(dataset, tmp_path / "run")
+    args.out.mkdir(parents=True)
+    (args.out / "grasp-flow.pt").symlink_to(GENERATOR_CHECKPOINT.resolve())
+    record, _ = training.sample_objects(args)[0]
+    every = training.object_samples(replace(args, ranker_samples=1024), record)
+    passing = training.object_samples(
+        replace(args, ranker_samples=1024, ranker_pairs="cloud_force_closure"), record
+    )
+    assert every["cloud_force_closure"].sum() >= 1  # the group is not empty on this object
+    assert passing["cloud_force_closure"].all()
+    assert len(passing["label"]) == every["cloud_force_closure"].sum()  # all of the group
+    with pytest.raises(training.TrainingArgumentsError, match="--ranker-pairs: expected one of"):
+        training.main(replace(args, ranker_pairs="passing"))
+
+
 @pytest.fixture(scope="module")
 def procedural_object():
     ref = load_benchmark_ref(None)
@@ -253,7 +271,8 @@ def test_a_hand_around_a_bar_snaps_onto_it_and_one_through_it_is_dropped() -> No
 
 
 @pytest.mark.parametrize(
-    "name", ["flow_predictor", "flow_random_predictor", "flow_smoothed_predictor"]
+    "name",
+    ["flow_predictor", "flow_random_predictor", "flow_smoothed_predictor", "flow_robust_predictor"],
 )
 def test_the_registered_predictors_run_on_the_cloud_track(tmp_path: Path, name: str) -> None:
     from dg16m_env.subjects.predictor import submission_from_predictor
@@ -310,3 +329,38 @@ def test_lift_with_generated_grasps_runs_both_settings(tmp_path: Path) -> None:
     for setting in ("benchmark_grasp", "generated_grasp"):
         assert results[setting]["episodes"] == 1
     assert (tmp_path / "lift.json").is_file()
+
+
+def test_the_robust_variant_ranks_pairs_by_their_level_then_by_the_ranker() -> None:
+    from baselines.cloud_robust import MOTION_RATIO_LEVELS, cloud_inertia
+    from dataset_gen.grasps.robust import disturbance_motion
+
+    ref = load_benchmark_ref(None)
+    shelf = next(o for o in ref.benchmark.objects if o.object_id == "shelf-1000000")
+    observation = cloud_observation(shelf.load(None))  # passing pairs on all four levels
+    predictor = FlowPredictor(robust=True)
+    cloud, candidates, passed, _ = predictor.candidates(observation)
+    assert passed.sum() > predictor.k  # enough passing pairs for the levels to decide the top
+    motion = disturbance_motion(
+        candidates.contact_points[passed],
+        candidates.contact_normals[passed],
+        center_of_mass=np.zeros(3),
+        inertia=cloud_inertia(cloud.points),
+    )
+    level = np.full(candidates.n, -1)  # -1: fails force closure on the cloud
+    level[passed] = (motion.ratio[:, None] <= np.asarray(MOTION_RATIO_LEVELS)).sum(axis=1)
+    poses, scores = predictor(observation)
+    flat = candidates.poses.reshape(candidates.n, -1)
+    chosen = [int(np.flatnonzero((flat == p.ravel()).all(axis=1))[0]) for p in poses]
+    got = level[chosen]
+    assert np.all(np.diff(got) <= 0)  # best level first, the ranker within a level
+    left_out = np.setdiff1d(np.arange(candidates.n), chosen)
+    assert got.min() >= level[left_out].max()  # none left out is on a better level
+    assert np.all(np.diff(scores) <= 0)
+    plain, _ = FlowPredictor()(observation)
+    assert not np.array_equal(plain, poses)  # the levels changed the top here
+    assert len(np.unique(level[passed])) == 4
+    with pytest.raises(CloudError, match="robust: expected a bool"):
+        FlowPredictor(robust=1)
+    with pytest.raises(CloudError, match="expected"):
+        FlowPredictor(motion_ratio_levels=(2.0, 1.0))
